@@ -1,0 +1,1 @@
+"""jaxheli: JAX-accelerated, differentiable system identification of small unmanned helicopters."""

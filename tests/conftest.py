@@ -1,0 +1,24 @@
+"""Strict test settings: float64, no silent rank promotion; real data required when asked."""
+
+import os
+
+import jax
+import pytest
+
+jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_numpy_rank_promotion", "raise")
+
+from jaxheli.data_paths import data_dir  # noqa: E402
+
+REQUIRE_DATA = os.environ.get("JAXHELI_REQUIRE_DATA", "") not in ("", "0")
+
+
+@pytest.fixture(scope="session")
+def shared_data():
+    """Folder of the real flights; skips when absent unless JAXHELI_REQUIRE_DATA=1 (then fails)."""
+    path = data_dir()
+    if not (path / "trex550" / "ppr_data.mat").is_file():
+        if REQUIRE_DATA:
+            pytest.fail(f"JAXHELI_REQUIRE_DATA=1 but the shared flight data is missing at {path}")
+        pytest.skip(f"shared flight data not found at {path} (set JAXHELI_DATA)")
+    return path
