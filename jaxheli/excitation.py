@@ -18,7 +18,9 @@ _EDGE_TOL = 1e-9
 """Relative tolerance that puts a sample lying on a pulse edge (up to rounding) after the edge."""
 
 
-def doublet(t: Float[ArrayLike, "N"], start: float, width: float, amplitude: float) -> Float[np.ndarray, "N"]:
+def doublet(
+    t: Float[ArrayLike, "N"], start: float, width: float, amplitude: float
+) -> Float[np.ndarray, "N"]:
     """``+amplitude`` on ``[start, start + width)``, ``-amplitude`` on the next ``width`` s, zero elsewhere."""
     t = _grid(t, "doublet")
     _require(width > 0, f"doublet: width must be > 0 s, got {width}")
@@ -61,7 +63,7 @@ def sweep(
     _require(duration > 0, f"sweep: duration must be > 0 s, got {duration}")
     _require_finite("sweep", start=start, amplitude=amplitude, f0=f0, f1=f1)
     fade = duration / 10 if fade is None else fade
-    _require(0 <= fade <= duration / 2, f"sweep: fade must lie in [0, duration/2] = [0, {duration / 2}] s, got {fade}")
+    _require(0 <= fade <= duration / 2, f"sweep: fade must lie in [0, duration / 2] s, got {fade}")
     _below_nyquist(t, max(f0, f1), "sweep")
     tau = np.clip(t - start, 0.0, duration)
     ratio = np.log(f1 / f0)
@@ -89,8 +91,9 @@ def multisine(
     """
     t = _grid(t, "multisine")
     freqs = np.sort(np.atleast_1d(np.asarray(freqs, dtype=np.float64)))
-    _require(freqs.ndim == 1 and freqs.size > 0, f"multisine: freqs must be a non-empty 1-D list, got shape {freqs.shape}")
-    _require(bool(np.all(np.isfinite(freqs)) and np.all(freqs > 0)), f"multisine: freqs must be finite and > 0 Hz, got {freqs}")
+    _require(freqs.ndim == 1 and freqs.size > 0, f"multisine: freqs must be a non-empty 1-D list, got {freqs}")
+    _require(bool(np.all(np.isfinite(freqs)) and np.all(freqs > 0)),
+             f"multisine: freqs must be finite and > 0 Hz, got {freqs}")
     _require(bool(np.all(np.diff(freqs) > 0)), f"multisine: freqs must be distinct, got {freqs}")
     _require_finite("multisine", amplitude=amplitude)
     _below_nyquist(t, float(freqs[-1]), "multisine")
@@ -125,14 +128,16 @@ class Excitation:
     lead: float = 1.0
 
     def __post_init__(self) -> None:
-        _require(self.kind in ("3211", "sweep", "mixed"), f"Excitation: kind must be '3211', 'sweep' or 'mixed', got {self.kind!r}")
+        _require(self.kind in ("3211", "sweep", "mixed"),
+                 f"Excitation: kind must be '3211', 'sweep' or 'mixed', got {self.kind!r}")
         amp = tuple(float(a) for a in self.amplitude)
-        _require(len(amp) == len(INPUT_NAMES) and all(0 <= abs(a) <= 1 for a in amp),
+        _require(len(amp) == len(INPUT_NAMES) and all(abs(a) <= 1 for a in amp),
                  f"Excitation: amplitude must be 4 sticks in [-1, 1] (lat lon ped col), got {self.amplitude}")
         _require(self.unit > 0, f"Excitation: unit must be > 0 s, got {self.unit}")
         _require(len(self.band) == 2 and 0 < self.band[0] and 0 < self.band[1],
                  f"Excitation: band must be two frequencies > 0 Hz, got {self.band}")
-        _require(self.fade >= 0 and self.lead >= 0, f"Excitation: fade and lead must be >= 0 s, got {self.fade}, {self.lead}")
+        _require(self.fade >= 0 and self.lead >= 0,
+                 f"Excitation: fade and lead must be >= 0 s, got {self.fade}, {self.lead}")
         object.__setattr__(self, "amplitude", amp)
         object.__setattr__(self, "band", (float(self.band[0]), float(self.band[1])))
 
@@ -143,8 +148,9 @@ class Excitation:
         n_slots = len(kinds) * len(INPUT_NAMES)
         slot = (t[-1] - t[0] - self.lead) / n_slots
         need = max(7 * self.unit if "3211" in kinds else 0.0, 2 * self.fade if "sweep" in kinds else 0.0)
-        _require(slot > need, f"Excitation: a record of {t[-1] - t[0]:.4g} s leaves {slot:.4g} s per axis slot, "
-                              f"less than the {need:.4g} s one manoeuvre needs; fly longer or shorten unit/fade")
+        _require(slot > need, f"Excitation: a {t[-1] - t[0]:.4g} s record leaves {slot:.4g} s per axis "
+                              f"slot, less than the {need:.4g} s one manoeuvre needs; fly longer or shorten "
+                              "unit/fade")
         out = np.zeros((t.size, len(INPUT_NAMES)))
         for i, (kind, axis) in enumerate((k, a) for k in kinds for a in range(len(INPUT_NAMES))):
             start = t[0] + self.lead + i * slot
@@ -183,7 +189,8 @@ def _grid(t: ArrayLike, who: str) -> np.ndarray:
 def _below_nyquist(t: np.ndarray, f_max: float, who: str) -> None:
     if t.size > 1:
         nyquist = 0.5 / np.max(np.diff(t))
-        _require(f_max < nyquist, f"{who}: frequency {f_max} Hz is not below the grid's Nyquist frequency {nyquist:.4g} Hz")
+        _require(f_max < nyquist,
+                 f"{who}: frequency {f_max} Hz is not below the grid's Nyquist frequency {nyquist:.4g} Hz")
 
 
 def _require_finite(who: str, **values: float) -> None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import types
 from collections.abc import Mapping
 
 import jax
@@ -25,11 +26,11 @@ from .model import G_SI, INPUT_NAMES, MEASURABLE, N_PARAMS, STATE_NAMES, TABLE2,
 DEFAULT_OUTPUTS: tuple[str, ...] = ("u", "v", "p", "q", "phi", "theta", "w", "r")
 """Output channels of a synthetic flight: what an IMU, attitude estimator and GPS give."""
 
-DEFAULT_NOISE: dict[str, float] = {
+DEFAULT_NOISE: Mapping[str, float] = types.MappingProxyType({
     "u": 0.05, "v": 0.05, "w": 0.05,
     "p": 0.015, "q": 0.015, "r": 0.015,
     "phi": 0.005, "theta": 0.005, "a": 0.005, "b": 0.005,
-}
+})
 """Measurement noise standard deviation per channel (m/s, rad/s, rad): typical small-UAV sensor levels."""
 
 _GUST_STATES = ("u", "v", "w")
@@ -48,7 +49,7 @@ class Pilot:
     deviations per state (units of the parameter set: m/s, rad/s, rad) and the largest feedback stick the
     pilot accepts. ``max_state`` entries override the defaults by name. ``delay`` (s, rounded to samples)
     lags the pilot's feedback before it reaches the sticks; the LQR is designed on the delay-augmented
-    model (the pilot anticipates his own lag), so any delay keeps the loop stable.
+    model (the pilot anticipates its own lag), so the nominal loop is stable for any delay.
     """
 
     max_state: Mapping[str, float] = dataclasses.field(default_factory=dict)
@@ -59,7 +60,7 @@ class Pilot:
         unknown = sorted(set(self.max_state) - set(STATE_NAMES))
         if unknown:
             raise ValueError(f"Pilot: unknown state names {unknown} in max_state; states are {STATE_NAMES}")
-        merged = {**_MAX_STATE, **{k: float(v) for k, v in self.max_state.items()}}
+        merged = types.MappingProxyType({**_MAX_STATE, **{k: float(v) for k, v in self.max_state.items()}})
         if not all(np.isfinite(v) and v > 0 for v in merged.values()):
             raise ValueError(f"Pilot: max_state values must be finite and > 0, got {self.max_state}")
         if not (np.isfinite(self.max_stick) and self.max_stick > 0):
@@ -134,8 +135,9 @@ def piloted_flight(
     theta = np.asarray(theta, dtype=np.float64)
     _check(theta.shape == (N_PARAMS,) and bool(np.all(np.isfinite(theta))),
            f"piloted_flight: theta must be 40 finite parameters, got shape {theta.shape}")
-    _check(dt > 0 and duration >= dt, f"piloted_flight: need 0 < dt <= duration, got dt={dt}, duration={duration}")
-    _check(g > 0 and gust >= 0 and gust_tau > 0, f"piloted_flight: need g > 0, gust >= 0, gust_tau > 0, got {g}, {gust}, {gust_tau}")
+    _check(dt > 0 and duration >= dt, f"piloted_flight: need 0 < dt <= duration, got {dt}, {duration}")
+    _check(g > 0 and gust >= 0 and gust_tau > 0,
+           f"piloted_flight: need g > 0, gust >= 0, gust_tau > 0, got {g}, {gust}, {gust_tau}")
     _check(isinstance(seed, (int, np.integer)), f"piloted_flight: seed must be an integer, got {seed!r}")
     outputs = tuple(outputs)
     channels = output_indices(outputs)
@@ -159,7 +161,7 @@ def piloted_flight(
         white = jax.random.normal(key_gust, (n, len(_GUST_STATES)), jnp.float64)
         states, applied = _fly(Ad, Bd, Ed, K, sticks, white, gust, float(np.exp(-dt / gust_tau)),
                                pilot.lag_samples(dt))
-        meas_noise = jax.random.normal(key_meas, (n, len(outputs)), jnp.float64) * std
+        meas_noise = jax.random.normal(key_meas, (n, len(outputs)), jnp.float64) * std[None, :]
         states, applied = np.asarray(states), np.asarray(applied)
         measured = states[:, channels] + np.asarray(meas_noise)
     if not np.all(np.isfinite(states)):
@@ -200,9 +202,9 @@ DEFAULT_EXCITATION = Excitation("mixed", amplitude=(0.2, 0.2, 0.2, 0.2), unit=0.
 def default_flight() -> FlightData:
     """The flight shipped with the package: Table 2 truth, 80 s at 100 Hz, all four axes excited.
 
-    3-2-1-1s (unit 0.5 s) then logarithmic sweeps (0.2-4 Hz), peak 0.2 stick, on lat, lon, ped, col in turn, default
-    pilot, default measurement noise, no gusts, seed 0. Generated on first use and cached; its arrays
-    are read-only (copy before editing).
+    :data:`DEFAULT_EXCITATION`: 3-2-1-1s (unit 0.5 s) then logarithmic sweeps (0.2-4 Hz), peak 0.2
+    stick, on lat, lon, ped, col in turn; default pilot, default measurement noise, no gusts, seed 0.
+    Generated on first use and cached; its arrays are read-only (copy before editing).
     """
     flight = piloted_flight(TABLE2, duration=80.0, dt=0.01, excitation=DEFAULT_EXCITATION, seed=0, noise=1.0)
     for array in (flight.time, flight.inputs, flight.outputs):
@@ -212,7 +214,8 @@ def default_flight() -> FlightData:
 
 @functools.partial(jax.jit, static_argnames="lag")
 def _fly(
-    Ad: Array, Bd: Array, Ed: Array, K: Array, excitation: Array, white: Array, gust: float, rho: float, lag: int
+    Ad: Array, Bd: Array, Ed: Array, K: Array, excitation: Array, white: Array, gust: float, rho: float,
+    lag: int,
 ) -> tuple[Float[Array, "N 13"], Float[Array, "N 4"]]:
     """Closed-loop record as one scan: states ``x[k]`` and sticks applied over ``[t_k, t_k+1)``."""
 
@@ -237,11 +240,13 @@ def _noise_levels(noise: float | Mapping[str, float], outputs: tuple[str, ...]) 
         unknown = sorted(set(noise) - set(MEASURABLE))
         missing = [c for c in outputs if c not in noise]
         _check(not unknown and not missing,
-               f"piloted_flight: noise map must name every output {outputs} (missing {missing}, unknown {unknown})")
+               f"piloted_flight: noise map must name every output {outputs} (missing {missing}, "
+               f"unknown {unknown})")
         std = np.array([float(noise[c]) for c in outputs])
     else:
         std = float(noise) * np.array([DEFAULT_NOISE[c] for c in outputs])
-    _check(bool(np.all(np.isfinite(std)) and np.all(std >= 0)), f"piloted_flight: noise levels must be >= 0, got {noise}")
+    _check(bool(np.all(np.isfinite(std)) and np.all(std >= 0)),
+           f"piloted_flight: noise levels must be >= 0, got {noise}")
     return std
 
 
