@@ -1,1 +1,40 @@
-"""jaxheli: JAX-accelerated, differentiable system identification of small unmanned helicopters."""
+"""jaxheli: JAX-accelerated, differentiable system identification of small unmanned helicopters.
+
+Mettler's 13-state hover model (:mod:`jaxheli.model`), a batched ZOH/FOH simulator
+(:mod:`jaxheli.simulate`), the paper's Pearson cost and amplitude metrics (:mod:`jaxheli.cost`),
+flight-data readers (:mod:`jaxheli.io`) and piloted synthetic flights (:mod:`jaxheli.synth`).
+"""
+
+from .cost import fit_percent as fit_percent, metrics as metrics, paper_cost as paper_cost
+from .cost import pearson as pearson, rmse as rmse, tic as tic
+from .discretize import Discrete as Discrete, discretize as discretize
+from .evaluate import evaluate as evaluate, resolve_params as resolve_params
+from .excitation import Excitation as Excitation, doublet as doublet, multisine as multisine
+from .excitation import sweep as sweep, three_two_one_one as three_two_one_one
+from .flight import FlightData as FlightData, FlightDataError as FlightDataError
+from .initial_state import estimate_x0 as estimate_x0
+from .io import DEFAULT_PX4 as DEFAULT_PX4, load as load, save_csv as save_csv, save_npz as save_npz
+from .model import (
+    G_SI as G_SI,
+    INPUT_NAMES as INPUT_NAMES,
+    LOWER as LOWER,
+    MEASURABLE as MEASURABLE,
+    PARAM_NAMES as PARAM_NAMES,
+    PINNED as PINNED,
+    R50_G as R50_G,
+    R50_HOVER as R50_HOVER,
+    STATE_NAMES as STATE_NAMES,
+    TABLE2 as TABLE2,
+    UPPER as UPPER,
+    build_ab as build_ab,
+    output_matrix as output_matrix,
+    params_array as params_array,
+    params_dict as params_dict,
+)
+from .population import population_cost as population_cost
+from .preprocess import detrend as detrend, from_samples as from_samples, lowpass as lowpass
+from .preprocess import resample as resample, split as split, trim as trim
+from .simulate import Simulator as Simulator, make_simulator as make_simulator, simulate as simulate
+from .synth import Pilot as Pilot, default_flight as default_flight, piloted_flight as piloted_flight
+
+__version__ = "0.1.0"

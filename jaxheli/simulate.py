@@ -13,6 +13,7 @@ after the first is copied from the measurement.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Literal
 
 import equinox as eqx
@@ -86,6 +87,10 @@ class Simulator(eqx.Module):
 
         _, ys = jax.lax.scan(step, x0, (u[:-1], u[1:], meas[1:], restart))
         return jnp.concatenate([x0[idx][None, :], ys], axis=0)
+
+    def replace_x0(self, x0: Float[Array, "13"]) -> Simulator:
+        """The same simulator started from the given initial state."""
+        return dataclasses.replace(self, x0=jnp.asarray(x0), initial="given")
 
     def describe(self) -> dict[str, object]:
         """The settings in words and numbers, for result files."""

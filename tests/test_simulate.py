@@ -127,3 +127,17 @@ def test_bad_options_raise():
         make_simulator(f, segment=0.001)
     with pytest.raises(ValueError, match="x0"):
         make_simulator(f, x0=np.zeros(12))
+
+
+def test_estimated_initial_state_recovers_a_known_one():
+    from jaxheli.initial_state import estimate_x0
+
+    f = _flight(n=400)
+    x0 = np.zeros(13)
+    x0[[0, 1, 2, 3, 4, 5, 8, 9]] = [0.5, -0.3, 0.1, -0.05, 0.08, -0.04, 0.2, 0.03]
+    y = np.asarray(simulate(STABLE, f, x0=x0, outputs=("u", "v", "p", "q", "phi", "theta", "w", "r")))
+    data = FlightData(f.time, f.inputs, y, ("u", "v", "p", "q", "phi", "theta", "w", "r"))
+    est = estimate_x0(STABLE, data)
+    np.testing.assert_allclose(est[[0, 1, 2, 3, 4, 5, 8, 9]], x0[[0, 1, 2, 3, 4, 5, 8, 9]], atol=1e-6)
+    refit = np.asarray(simulate(STABLE, data, x0=est))
+    np.testing.assert_allclose(refit, y, atol=1e-8)

@@ -14,11 +14,13 @@ Columns ``a`` and ``b`` are multiples of the cyclic sticks, not measurements: le
 from __future__ import annotations
 
 import warnings
+import zlib
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 import scipy.io
+from scipy.io.matlab import MatReadError
 
 from ..flight import FlightData, FlightDataError
 from ..model import INPUT_NAMES, MEASURABLE
@@ -44,9 +46,8 @@ def load_mat(
 
     ``variables`` overrides detection: ``{"iddata": name}`` for an iddata struct, or
     ``{"inputs": name, "outputs": name, "time": name}`` for plain arrays (inputs ``[N, 4]`` lat lon ped
-    col, time in s). ``columns`` names the output columns (names outside
-    ``MEASURABLE`` are dropped); by default they come from the detected layout. Outputs are returned
-    in state order (``MEASURABLE``).
+    col, time in s). ``columns`` names the output columns (names outside ``MEASURABLE`` are dropped); by
+    default they come from the detected layout. Outputs are returned in state order (``MEASURABLE``).
     """
     path = Path(path)
     data, load_notes = _loadmat(path)
@@ -91,15 +92,21 @@ def _loadmat(path: Path) -> tuple[dict[str, Any], list[str]]:
         warnings.simplefilter("always")
         try:
             data = scipy.io.loadmat(path)
-        except (ValueError, NotImplementedError, TypeError, OSError) as exc:
-            raise FlightDataError(f"{path}: not a readable MATLAB v4/v5 file: {exc}") from exc
-    return {k: v for k, v in data.items() if not k.startswith("__")}, [f"scipy: {w.message}" for w in caught]
+        except (MatReadError, ValueError, NotImplementedError, TypeError, IndexError, OSError, zlib.error) as exc:
+            raise FlightDataError(
+                f"{path}: not a readable MATLAB v4/v5 file (truncated, corrupt or v7.3): {type(exc).__name__}: {exc}"
+            ) from exc
+    data = {k: v for k, v in data.items() if not k.startswith("__")}
+    if not data:
+        raise FlightDataError(f"{path}: no variables in the file (empty or truncated MATLAB file)")
+    return data, [f"scipy: {w.message}" for w in caught]
 
 
 def _detect(path: Path, data: dict[str, Any]) -> dict[str, str]:
     """Variable names of the first known layout found in ``data``."""
     for name, value in data.items():
-        if isinstance(value, np.ndarray) and value.dtype.names and {"OutputData", "InputData"} <= set(value.dtype.names):
+        fields = value.dtype.names if isinstance(value, np.ndarray) else None
+        if fields and {"OutputData", "InputData"} <= set(fields):
             return {"iddata": name}
     missing = [v for v in ("inr", "outr") if v not in data]
     if missing:
@@ -121,7 +128,9 @@ def _matrix(path: Path, name: str, value: Any, cols: int | None = None) -> np.nd
     arr = np.asarray(value)
     if arr.ndim != 2 or not np.issubdtype(arr.dtype, np.number) or (cols is not None and arr.shape[1] != cols):
         want = f"[N, {cols}]" if cols else "[N, k]"
-        raise FlightDataError(f"{path}: variable '{name}': expected a numeric {want} array, got {arr.dtype} {arr.shape}")
+        raise FlightDataError(
+            f"{path}: variable '{name}': expected a numeric {want} array, got {arr.dtype} {arr.shape}"
+        )
     return arr.astype(np.float64)
 
 

@@ -52,15 +52,16 @@ def load_npz(path: str | Path) -> FlightData:
         raise FlightDataError(f"{path}: a single .npy array, not an NPZ flight archive")
     try:
         with npz:
-            arrays = {f: npz[f] for f in npz.files if f in _FIELDS}
+            files = list(npz.files)
+            arrays = {f: npz[f] for f in files if f in _FIELDS}
     except bad as exc:
         raise FlightDataError(f"{path}: corrupt NPZ member: {exc}") from exc
     missing = [f for f in _FIELDS if f not in arrays]
     if missing:
-        raise FlightDataError(f"{path}: field '{missing[0]}' not found (fields: {sorted(arrays)})")
+        raise FlightDataError(f"{path}: field '{missing[0]}' not found (fields: {sorted(files)})")
     try:
         metadata = json.loads(str(arrays["metadata"]))
     except json.JSONDecodeError as exc:
         raise FlightDataError(f"{path}: field 'metadata': not valid JSON: {exc}") from exc
-    names = tuple(str(n) for n in np.atleast_1d(arrays["output_names"])) if arrays["output_names"].size else ()
+    names = tuple(str(n) for n in np.atleast_1d(arrays["output_names"]))
     return FlightData(arrays["time"], arrays["inputs"], arrays["outputs"], names, str(arrays["source"]), metadata)

@@ -1,0 +1,86 @@
+"""Score a parameter set on a flight: Pearson, TIC, RMSE, fit % per channel and the paper's cost."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ._types import Float
+from .cost import metrics
+from .flight import FlightData
+from .initial_state import estimate_x0
+from .model import N_PARAMS, PARAM_NAMES, TABLE2, params_array
+from .simulate import make_simulator
+
+NAMED_MODELS = {"table2": TABLE2}
+"""Parameter sets a user can name instead of a file (SI units)."""
+
+
+def default_outputs(flight: FlightData) -> tuple[str, ...]:
+    """The flight's measured channels, without the flapping columns a and b (stick multiples in the real data)."""
+    return tuple(c for c in flight.output_names if c not in ("a", "b"))
+
+
+def resolve_params(spec: str | Path | np.ndarray | dict) -> Float[np.ndarray, "40"]:
+    """A parameter vector from a name (``"table2"``), a result/params JSON file, a dict or an array."""
+    if isinstance(spec, np.ndarray) or (isinstance(spec, (list, tuple)) and len(spec) == N_PARAMS):
+        theta = np.asarray(spec, dtype=np.float64)
+    elif isinstance(spec, dict):
+        theta = params_array(spec.get("parameters", spec))
+    elif str(spec).lower() in NAMED_MODELS:
+        theta = NAMED_MODELS[str(spec).lower()].copy()
+    else:
+        path = Path(spec)
+        if not path.is_file():
+            raise FileNotFoundError(f"{path}: no such model file (or a named model: {sorted(NAMED_MODELS)})")
+        try:
+            content = json.loads(path.read_text())
+        except json.JSONDecodeError as err:
+            raise ValueError(f"{path}: not a JSON model file ({err})") from None
+        values = content.get("parameters", content) if isinstance(content, dict) else None
+        if not isinstance(values, dict):
+            raise ValueError(f"{path}: field 'parameters': expected a {{name: value}} object of the 40 parameters")
+        try:
+            theta = params_array(values)
+        except ValueError as err:
+            raise ValueError(f"{path}: field 'parameters': {err}") from None
+    if theta.shape != (N_PARAMS,) or not np.isfinite(theta).all():
+        raise ValueError(f"model parameters must be 40 finite numbers ({', '.join(PARAM_NAMES[:3])}, ...)")
+    return theta
+
+
+def evaluate(
+    params: str | Path | np.ndarray | dict,
+    flight: FlightData,
+    *,
+    outputs: tuple[str, ...] | list[str] | None = None,
+    x0: str | np.ndarray = "estimate",
+    **options,
+) -> dict[str, object]:
+    """Metrics of one parameter set on ``flight``.
+
+    Args:
+        params: anything :func:`resolve_params` takes.
+        flight: the record to score on.
+        outputs: channels to score (default :func:`default_outputs`).
+        x0: ``"estimate"`` (least-squares initial state, as MATLAB ``compare``), ``"zero"`` (the paper),
+            ``"measured"``, or a 13-vector.
+        options: simulation settings of :func:`jaxheli.make_simulator` (``hold``, ``g``, ``segment``, ...).
+
+    Returns ``{"pearson": {ch: rho}, "tic": ..., "rmse": ..., "fit_percent": ..., "cost": C,
+    "simulation": settings}``.
+    """
+    theta = resolve_params(params)
+    names = tuple(outputs) if outputs is not None else default_outputs(flight)
+    if isinstance(x0, str) and x0 == "estimate":
+        x0_used = estimate_x0(theta, flight, outputs=names, **options)
+    else:
+        x0_used = x0
+    sim = make_simulator(flight, outputs=names, x0=x0_used, **options)
+    out = metrics(sim(theta), flight.select(names).outputs, names)
+    settings = sim.describe()
+    settings["initial_state"] = x0 if isinstance(x0, str) else "given"
+    out["simulation"] = settings
+    return out
