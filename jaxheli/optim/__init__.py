@@ -1,0 +1,1 @@
+"""Optimisers of the hover-model parameters: metaheuristics, prediction-error minimisation, polishing."""
