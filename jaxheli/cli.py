@@ -57,6 +57,37 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_identify(args: argparse.Namespace) -> int:
+    from .identify import identify
+    from .results import save_result
+
+    train = _load_flight(args.train)
+    validate = _load_flight(args.validate) if args.validate else None
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    result = identify(
+        train,
+        method=args.method,
+        validate=validate,
+        iterations=args.iterations,
+        trials=args.trials,
+        seed=args.seed,
+        outputs=_outputs(args.outputs),
+        checkpoint=str(out / "checkpoint.eqx") if args.method != "pem" else None,
+        resume=args.resume,
+        **_sim_options(args),
+    )
+    _print_metrics(f"{args.method} on the training flight {train.source}", result.train)
+    if result.validate is not None:
+        _print_metrics(f"validation flight {validate.source}, initial state estimated", result.validate)
+        _print_metrics("validation flight, from rest (the paper)", result.validate["zero_initial_state"])
+    if result.polish:
+        print(f"polish: cost {result.polish['cost_before']:.6g} -> {result.polish['cost_after']:.6g}")
+    for path in save_result(result, out, train, validate):
+        print(f"wrote {path}")
+    return 0
+
+
 def _cmd_synth(args: argparse.Namespace) -> int:
     from .io import save_csv, save_npz
     from .synth import default_flight, piloted_flight
@@ -80,6 +111,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--float32", action="store_true", help="compute in float32 (faster; default float64)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("identify", help="fit the 40 parameters to a flight (IWO, GA, PEM, IWO + polish)")
+    p.add_argument("--method", choices=("iwo", "ga", "pem", "iwo+polish"), default="iwo+polish")
+    p.add_argument("--train", default=DEFAULT_DATA, help="training flight file or 'default' (the embedded flight)")
+    p.add_argument("--validate", default=None, help="validation flight file (optional)")
+    p.add_argument("--out", default="jaxheli-result", help="output folder (result.json, result.npz, PNGs)")
+    p.add_argument("--iterations", type=int, default=1000, help="IWO / GA generations (default 1000, the paper)")
+    p.add_argument("--trials", type=int, default=1, help="independent trials for 95%% intervals (the paper: 10)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.eqx")
+    _add_sim_options(p)
+    p.set_defaults(func=_cmd_identify)
 
     p = sub.add_parser("evaluate", help="score a model on a flight (Pearson, TIC, RMSE, fit %%, paper cost)")
     p.add_argument("--model", required=True, help="result.json / parameters JSON, or a named set: table2")

@@ -1,0 +1,230 @@
+"""Cramer-Rao-style standard errors at an optimum, and which parameters a flight can identify.
+
+Linearised least squares: with ``J`` the Jacobian of the residual vector over the free parameters
+(physical units, :func:`jax.jacfwd`) and ``s^2 = RSS / (N_res - rank J)``, ``cov = s^2 (J^T J)^+``
+(``rank J = n_free`` when every free parameter is resolved; an unresolved direction costs no degree of
+freedom, so a model with unused parameters gives exactly the ordinary least-squares errors). The
+pseudo-inverse works on the column-normalised Jacobian (each column divided by its norm, so the cutoff
+does not depend on units) and drops singular values below ``rcond`` times the largest. A parameter with
+weight above ``null_tol`` in a dropped direction is *unresolved*: the outputs do not determine it (no
+effect on them, or an exact trade-off with other parameters); its standard error is ``+inf``.
+
+For the hover model the residuals are :func:`jaxheli.optim.pem.pem`'s: output errors divided by each
+measured channel's standard deviation, so ``s^2`` pools the channels as if their normalised noise were
+equal.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._types import Array, ArrayLike, Bool, Float
+from ..discretize import Hold
+from ..flight import FlightData
+from ..model import G_SI, N_PARAMS, PARAM_NAMES
+from ..simulate import InitialState
+from ._box import Free, free_mask
+from .pem import _problem
+
+
+@dataclasses.dataclass(frozen=True)
+class Uncertainty:
+    """Standard errors of ``theta`` (all arrays in :data:`PARAM_NAMES` order).
+
+    Attributes:
+        theta: ``[40]`` the point of linearisation (physical units).
+        stderr: ``[40]`` standard errors in the parameters' units: ``+inf`` for unresolved parameters,
+            0 for fixed (not free) ones.
+        relative: ``[40]`` ``stderr / |theta|`` (``+inf`` where theta is 0 and stderr is not).
+        correlation: ``[40, 40]`` correlations of the resolved free parameters; rows and columns of the
+            others are those of the identity.
+        free: ``[40]`` fitted parameters.
+        resolved: ``[40]`` free parameters outside the Jacobian's (numerical) null space.
+        singular_values: ``[n_free]`` of the column-normalised Jacobian, descending.
+        rank: singular values kept (above ``rcond`` times the largest).
+        sigma2: ``s^2``, the residual variance estimate.
+        dof: ``N_res - rank``.
+    """
+
+    theta: np.ndarray
+    stderr: np.ndarray
+    relative: np.ndarray
+    correlation: np.ndarray
+    free: np.ndarray
+    resolved: np.ndarray
+    singular_values: np.ndarray
+    rank: int
+    sigma2: float
+    dof: int
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready values; per-parameter quantities as ``{name: value}`` (inf as ``"inf"``)."""
+        named = lambda v: {n: _json(x) for n, x in zip(PARAM_NAMES, v.tolist())}  # noqa: E731
+        return {
+            "theta": named(self.theta),
+            "stderr": named(self.stderr),
+            "relative": named(self.relative),
+            "correlation": self.correlation.tolist(),
+            "free": [n for n, f in zip(PARAM_NAMES, self.free) if f],
+            "resolved": [n for n, r in zip(PARAM_NAMES, self.resolved) if r],
+            "singular_values": self.singular_values.tolist(),
+            "rank": self.rank,
+            "sigma2": self.sigma2,
+            "dof": self.dof,
+        }
+
+
+def _json(x: float) -> float | str:
+    return x if np.isfinite(x) else "inf"
+
+
+@eqx.filter_jit
+def _jacobian(fn: Callable[[Array], Array], theta: Array, idx: Array) -> tuple[Array, Array]:
+    """Residuals and their Jacobian over ``theta[idx]`` (forward mode)."""
+    def of_free(v):
+        return fn(theta.at[idx].set(v))
+
+    return of_free(theta[idx]), jax.jacfwd(of_free)(theta[idx])
+
+
+def from_residuals(
+    fn: Callable[[Float[Array, "40"]], Float[Array, " m"]],
+    theta: Float[ArrayLike, "40"],
+    *,
+    free: Free = None,
+    rcond: float = 1e-8,
+    null_tol: float = 1e-6,
+) -> Uncertainty:
+    """Standard errors of ``theta`` for a residual function ``fn(theta[40]) -> r[m]`` (jit-traceable).
+
+    ``free`` (mask or names, default every non-pinned parameter) are the estimated ones; ``rcond`` is the
+    relative singular-value cutoff of the pseudo-inverse, ``null_tol`` the weight in a dropped direction
+    that marks a parameter unresolved.
+    """
+    theta = np.asarray(theta, dtype=np.float64)
+    if theta.shape != (N_PARAMS,):
+        raise ValueError(f"from_residuals: theta must have shape (40,), got {theta.shape}")
+    mask = free_mask(free)
+    idx = np.flatnonzero(mask)
+    r, J = (np.asarray(v, dtype=np.float64) for v in _jacobian(fn, jnp.asarray(theta), jnp.asarray(idx)))
+    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J))):
+        raise ValueError("from_residuals: residuals or Jacobian are not finite at theta")
+    if r.size <= idx.size:
+        raise ValueError(f"from_residuals: {r.size} residuals for {idx.size} free parameters; need more residuals")
+    norms = np.linalg.norm(J, axis=0)
+    norms = np.where(norms > 0, norms, 1.0)
+    _, s, vt = np.linalg.svd(J / norms, full_matrices=False)
+    keep = s > rcond * s[0] if s[0] > 0 else np.zeros_like(s, dtype=bool)
+    dof = r.size - int(keep.sum())
+    sigma2 = float(r @ r / dof)
+    null_weight = np.sum(vt[~keep] ** 2, axis=0)
+    ok = null_weight <= null_tol
+    cov_scaled = (vt[keep].T / s[keep] ** 2) @ vt[keep]
+    cov = sigma2 * cov_scaled / np.outer(norms, norms)
+    var = np.where(ok, np.maximum(np.diag(cov), 0.0), 0.0)
+    scale = np.sqrt(np.outer(var, var))
+    corr_free = np.divide(cov, scale, out=np.zeros_like(cov), where=np.outer(ok, ok) & (scale > 0))
+    np.fill_diagonal(corr_free, 1.0)
+
+    stderr = np.zeros(N_PARAMS)
+    stderr[idx] = np.where(ok, np.sqrt(var), np.inf)
+    resolved = np.zeros(N_PARAMS, bool)
+    resolved[idx] = ok
+    correlation = np.eye(N_PARAMS)
+    correlation[np.ix_(idx, idx)] = corr_free
+    magnitude = np.abs(theta)
+    relative = np.where(stderr == 0, 0.0, stderr / np.where(magnitude > 0, magnitude, 1.0))
+    relative = np.where((magnitude == 0) & (stderr > 0), np.inf, relative)
+    return Uncertainty(theta, stderr, relative, correlation, mask, resolved, s, int(keep.sum()), sigma2, dof)
+
+
+def standard_errors(
+    flight: FlightData,
+    theta: Float[ArrayLike, "40"],
+    *,
+    outputs: tuple[str, ...] | list[str] | None = None,
+    segment: float | None = 1.0,
+    hold: Hold = "zoh",
+    x0: InitialState = "measured",
+    g: float = G_SI,
+    free: Free = None,
+    rcond: float = 1e-8,
+    null_tol: float = 1e-6,
+) -> Uncertainty:
+    """Standard errors of ``theta`` (an optimum of :func:`jaxheli.optim.pem.pem`) on ``flight``.
+
+    The residuals are PEM's normalised output errors under the same simulator settings (``outputs``,
+    ``segment`` s, ``hold``, ``x0``, ``g``); ``free``, ``rcond``, ``null_tol`` as in :func:`from_residuals`.
+    """
+    problem = _problem(flight, outputs, segment, hold, x0, g)
+    return from_residuals(problem.residuals, theta, free=free, rcond=rcond, null_tol=null_tol)
+
+
+@dataclasses.dataclass(frozen=True)
+class Identifiability:
+    """Which parameters a flight identifies at ``theta``, and why.
+
+    Attributes:
+        names: the identifiable parameters (free, resolved, relative standard error <= ``threshold``).
+        flags: ``[40]`` the same as a mask.
+        reasons: ``{name: sentence}`` for every parameter.
+        threshold: the relative standard error accepted.
+        uncertainty: the standard errors behind the verdict.
+    """
+
+    names: tuple[str, ...]
+    flags: Bool[np.ndarray, "40"]
+    reasons: dict[str, str]
+    threshold: float
+    uncertainty: Uncertainty
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready values."""
+        return {
+            "identifiable": list(self.names),
+            "reasons": dict(self.reasons),
+            "threshold": self.threshold,
+            "uncertainty": self.uncertainty.to_dict(),
+        }
+
+
+def identifiable(
+    flight: FlightData, theta: Float[ArrayLike, "40"], *, threshold: float = 0.1, **options: Any
+) -> Identifiability:
+    """Parameters whose relative standard error at ``theta`` is at most ``threshold`` (0.1 = 10 %).
+
+    ``options`` are those of :func:`standard_errors`. Each parameter gets a reason: fixed, unresolved
+    (with the parameters it trades off against), too uncertain (with its most correlated partner), or
+    its relative standard error.
+    """
+    unc = standard_errors(flight, theta, **options)
+    flags = unc.resolved & (unc.relative <= threshold)
+    return Identifiability(
+        names=tuple(n for n, f in zip(PARAM_NAMES, flags) if f),
+        flags=flags,
+        reasons={n: _reason(i, unc, threshold) for i, n in enumerate(PARAM_NAMES)},
+        threshold=float(threshold),
+        uncertainty=unc,
+    )
+
+
+def _reason(i: int, unc: Uncertainty, threshold: float) -> str:
+    if not unc.free[i]:
+        return "fixed: not estimated (pinned by the bounds or held at its given value)"
+    if not unc.resolved[i]:
+        return "unresolved: the fitted outputs do not determine it (Jacobian null space)"
+    rel = unc.relative[i]
+    corr = np.abs(unc.correlation[i].copy())
+    corr[i] = 0.0
+    j = int(np.argmax(corr))
+    partner = f"; most correlated with {PARAM_NAMES[j]} (rho = {unc.correlation[i, j]:+.3f})" if corr[j] > 0 else ""
+    if rel <= threshold:
+        return f"identifiable: relative standard error {rel:.2g}{partner}"
+    return f"poorly determined: relative standard error {rel:.2g} > {threshold:g}{partner}"

@@ -1,0 +1,74 @@
+"""Cramer-Rao standard errors against closed-form OLS, and identifiability on a synthetic flight."""
+
+import json
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxheli.excitation import multisine
+from jaxheli.flight import FlightData
+from jaxheli.model import PARAM_NAMES, PINNED, TABLE2
+from jaxheli.optim.uncertainty import from_residuals, identifiable
+from jaxheli.simulate import simulate
+
+OUTPUTS = ("u", "v", "p", "q", "phi", "theta", "w", "r")
+USED = ("Xu", "Lb")
+UNUSED = ("Mu", "Zb", "Nrfb")
+
+
+def _regression(n: int = 200, seed: int = 0):
+    """``y = b0 x0 + b1 x1 + noise`` with (b0, b1) stored in theta[Xu], theta[Lb]; no other parameter enters."""
+    rng = np.random.default_rng(seed)
+    X = rng.standard_normal((n, 2)) + np.array([[0.5, -0.2]])
+    y = X @ np.array([-0.3, 150.0]) + 0.1 * rng.standard_normal(n)
+    idx = [PARAM_NAMES.index(p) for p in USED]
+
+    def residuals(theta):
+        return jnp.asarray(X) @ theta[jnp.asarray(idx)] - jnp.asarray(y)
+
+    beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+    resid = X @ beta - y
+    ols = np.sqrt(np.diag(resid @ resid / (n - 2) * np.linalg.inv(X.T @ X)))
+    theta = TABLE2.copy()
+    theta[idx] = beta
+    return residuals, theta, ols, X
+
+
+@pytest.mark.parametrize("free", [USED + UNUSED, None])
+def test_stderr_matches_ols_and_flags_unused_parameters(free):
+    residuals, theta, ols, X = _regression()
+    unc = from_residuals(residuals, theta, free=free)
+    idx = [PARAM_NAMES.index(p) for p in USED]
+    np.testing.assert_allclose(unc.stderr[idx], ols, rtol=1e-8)
+    corr = np.linalg.inv(X.T @ X)
+    np.testing.assert_allclose(unc.correlation[idx[0], idx[1]], corr[0, 1] / np.sqrt(corr[0, 0] * corr[1, 1]),
+                               rtol=1e-8)
+    unused = [i for i, n in enumerate(PARAM_NAMES) if unc.free[i] and n not in USED]
+    assert unc.rank == 2 and unc.dof == 198
+    assert np.all(np.isinf(unc.stderr[unused])) and not unc.resolved[unused].any()
+    assert unc.resolved[idx].all()
+    fixed = [PARAM_NAMES.index(p) for p in PINNED]
+    assert np.all(unc.stderr[fixed] == 0.0) and not unc.free[fixed].any()
+    assert np.all(np.isfinite(unc.correlation))
+    json.dumps(unc.to_dict())
+
+
+def test_identifiability_on_a_flight_without_heave():
+    t = np.arange(0.0, 15.01, 0.02)
+    freqs = 0.1 * np.arange(1, 41)
+    sticks = np.stack([multisine(t, freqs[i::4], 0.05, phases="random", seed=50 + i) for i in range(4)], 1)
+    clean = np.asarray(simulate(TABLE2, FlightData(t, sticks, np.tile(np.arange(8.0), (t.size, 1)), OUTPUTS)))
+    noisy = clean + 0.01 * clean.std(axis=0) * np.random.default_rng(5).standard_normal(clean.shape)
+    flight = FlightData(t, sticks, noisy, OUTPUTS, source="synthetic multisine flight 5")
+    # w is not fitted: the heave row (Za Zb Zw Zr Zcol) reaches no fitted output (Lw, Mw, Nw are pinned).
+    # Nrfb and Kr enter only as their product: r_fb is unmeasured, so its scale is free.
+    verdict = identifiable(flight, TABLE2, outputs=("u", "v", "p", "q", "phi", "theta", "r"), segment=1.0)
+    unc = verdict.uncertainty
+    unresolved = {n for i, n in enumerate(PARAM_NAMES) if unc.free[i] and not unc.resolved[i]}
+    assert unresolved == {"Za", "Zb", "Zw", "Zr", "Zcol", "Nrfb", "Kr"}
+    assert set(verdict.names) >= {"Lb", "Ma", "Xu", "Yv", "tf", "Alon", "Blat", "Dlat", "Nped", "ts"}
+    assert all(verdict.reasons[p].startswith("fixed") for p in PINNED)
+    assert verdict.reasons["Zw"].startswith("unresolved") and verdict.reasons["Lb"].startswith("identifiable")
+    assert np.all(unc.relative[[PARAM_NAMES.index(p) for p in ("Lb", "Ma", "tf")]] < 0.01)
+    json.dumps(verdict.to_dict())
