@@ -2,7 +2,8 @@
 
 Mettler's 13-state hover model (:mod:`jaxheli.model`), a batched ZOH/FOH simulator
 (:mod:`jaxheli.simulate`), the paper's Pearson cost and amplitude metrics (:mod:`jaxheli.cost`),
-flight-data readers (:mod:`jaxheli.io`) and piloted synthetic flights (:mod:`jaxheli.synth`).
+flight-data readers (:mod:`jaxheli.io`), piloted synthetic flights (:mod:`jaxheli.synth`), and the
+identification engines (:mod:`jaxheli.optim`, :func:`jaxheli.identify`).
 """
 
 from .cost import fit_percent as fit_percent, metrics as metrics, paper_cost as paper_cost
@@ -12,6 +13,7 @@ from .evaluate import evaluate as evaluate, resolve_params as resolve_params
 from .excitation import Excitation as Excitation, doublet as doublet, multisine as multisine
 from .excitation import sweep as sweep, three_two_one_one as three_two_one_one
 from .flight import FlightData as FlightData, FlightDataError as FlightDataError
+from .identify import IdentificationResult as IdentificationResult, identify as identify
 from .initial_state import estimate_x0 as estimate_x0
 from .io import DEFAULT_PX4 as DEFAULT_PX4, load as load, save_csv as save_csv, save_npz as save_npz
 from .model import (
@@ -31,9 +33,12 @@ from .model import (
     params_array as params_array,
     params_dict as params_dict,
 )
+from .optim import GA as GA, IWO as IWO, minimize as minimize, minimize_trials as minimize_trials
+from .optim import pem as pem, polish as polish, standard_errors as standard_errors
 from .population import population_cost as population_cost
 from .preprocess import detrend as detrend, from_samples as from_samples, lowpass as lowpass
 from .preprocess import resample as resample, split as split, trim as trim
+from .results import save_result as save_result
 from .simulate import Simulator as Simulator, make_simulator as make_simulator, simulate as simulate
 from .synth import Pilot as Pilot, default_flight as default_flight, piloted_flight as piloted_flight
 

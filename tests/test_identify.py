@@ -47,9 +47,9 @@ def test_iwo_polish_matches_truth_on_validation(flights):
         assert abs(result.validate["pearson"][c] - truth["pearson"][c]) < 0.01, c
     assert result.polish["cost_after"] <= result.polish["cost_before"]
     assert result.intervals95 is not None and result.history.shape == (2, 25)
-    for name in ("Lb", "Ma", "Alon"):  # Blat shares the lateral path with Dlat*Bd: weakly identified
-        i = PARAM_NAMES.index(name)
-        assert abs(result.params[i] - TABLE2[i]) < 0.05 * abs(TABLE2[i]), name
+    # Parameter values are not asserted here: the Pearson cost is blind to output amplitude, so gains
+    # are only weakly pinned by it (test_pem.py checks recovery of values by prediction error).
+    assert result.train["cost"] < 0.05
 
 
 def test_pem_matches_truth_on_validation(flights):

@@ -1,1 +1,12 @@
-"""Optimisers of the hover-model parameters: metaheuristics, prediction-error minimisation, polishing."""
+"""Identification engines: IWO and GA (ask/tell population optimisers), PEM and gradient polish
+(optimistix least squares), the run driver (chunked scan, checkpoints, vmapped trials), uncertainty."""
+
+from ._base import AbstractPopulationOptimizer as AbstractPopulationOptimizer, Candidates as Candidates
+from .ga import GA as GA, GAState as GAState
+from .iwo import IWO as IWO, IWOState as IWOState
+from .pem import PEMResult as PEMResult, pem as pem
+from .polish import polish as polish
+from .run import RunResult as RunResult, minimize as minimize, minimize_trials as minimize_trials
+from .uncertainty import Identifiability as Identifiability, Uncertainty as Uncertainty
+from .uncertainty import from_residuals as from_residuals, identifiable as identifiable
+from .uncertainty import standard_errors as standard_errors
