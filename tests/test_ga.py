@@ -10,9 +10,8 @@ import scipy.optimize
 from jaxheli.optim._base import Candidates
 from jaxheli.optim.ga import GA
 from jaxheli.optim.run import minimize
+from problems import HI6, HOLEY, LO6, SHIFT, SPHERE, Rosenbrock
 
-SHIFT = jnp.array([1.3, -2.2, 0.7, 3.1, -0.4, 2.5])
-LO6, HI6 = -5.0 * np.ones(6), 5.0 * np.ones(6)
 # Rosenbrock in 6 dimensions, axis 1 pinned at the optimum's value 1 and axis 4 pinned off it (at 0.5);
 # the box excludes the local minimum near x0 = -1.
 LO_R, HI_R = -0.5 * np.ones(6), 2.0 * np.ones(6)
@@ -20,35 +19,8 @@ LO_R[1] = HI_R[1] = 1.0
 LO_R[4] = HI_R[4] = 0.5
 
 
-def _in_box(thetas, lower, upper):
-    """Fail the run (inside jit) if any candidate handed to the cost leaves the box."""
-    lo, hi = jnp.asarray(lower)[None, :], jnp.asarray(upper)[None, :]
-    return eqx.error_if(thetas, jnp.any((thetas < lo) | (thetas > hi)), "candidate outside the bounds")
-
-
-class Bowl(eqx.Module):
-    """Shifted sphere on [-5, 5]^6; with ``holes``: NaN over the optimum (x0 > 1), +inf where x1 > 2,
-    -inf where x2 < -3. The flag is an array, so both variants share one compiled run."""
-
-    holes: jax.Array
-
-    def __call__(self, thetas):
-        thetas = _in_box(thetas, LO6, HI6)
-        cost = jnp.sum((thetas - SHIFT[None, :]) ** 2, axis=1)
-        holey = jnp.where(thetas[:, 0] > 1.0, jnp.nan, cost)
-        holey = jnp.where(thetas[:, 1] > 2.0, jnp.inf, holey)
-        holey = jnp.where(thetas[:, 2] < -3.0, -jnp.inf, holey)
-        return jnp.where(self.holes, holey, cost)
-
-
-SPHERE, HOLEY = Bowl(jnp.asarray(False)), Bowl(jnp.asarray(True))
 OPT6 = GA(LO6, HI6, iterations=200)
-
-
-def rosenbrock(thetas):
-    thetas = _in_box(thetas, LO_R, HI_R)
-    x, y = thetas[:, :-1], thetas[:, 1:]
-    return jnp.sum(100.0 * (y - x**2) ** 2 + (1.0 - x) ** 2, axis=1)
+rosenbrock = Rosenbrock(LO_R, HI_R)
 
 
 def test_finds_shifted_sphere():

@@ -14,46 +14,18 @@ from jaxheli.model import PARAM_NAMES, TABLE2
 from jaxheli.optim._base import Candidates
 from jaxheli.optim.iwo import IWO, IWOState, _seed_counts
 from jaxheli.optim.run import minimize
+from problems import HI6, HOLEY, LO6, SHIFT, SPHERE, Rosenbrock
 from jaxheli.population import simulator_cost
 from jaxheli.simulate import make_simulator, simulate
 
-SHIFT = jnp.array([1.3, -2.2, 0.7, 3.1, -0.4, 2.5])
-LO6, HI6 = -5.0 * np.ones(6), 5.0 * np.ones(6)
 # Rosenbrock in 8 dimensions with axes 2 and 5 pinned at the optimum's value 1; the box excludes the
 # local minimum near x0 = -1.
 LO8, HI8 = -0.5 * np.ones(8), 2.0 * np.ones(8)
 LO8[[2, 5]] = HI8[[2, 5]] = 1.0
 
 
-def _in_box(thetas, lower, upper):
-    """Fail the run (inside jit) if any candidate handed to the cost leaves the box."""
-    lo, hi = jnp.asarray(lower)[None, :], jnp.asarray(upper)[None, :]
-    return eqx.error_if(thetas, jnp.any((thetas < lo) | (thetas > hi)), "candidate outside the bounds")
-
-
-class Bowl(eqx.Module):
-    """Shifted sphere on [-5, 5]^6; with ``holes``: NaN over the optimum (x0 > 1), +inf where x1 > 2,
-    -inf where x2 < -3. The flag is an array, so both variants share one compiled run."""
-
-    holes: jax.Array
-
-    def __call__(self, thetas):
-        thetas = _in_box(thetas, LO6, HI6)
-        cost = jnp.sum((thetas - SHIFT[None, :]) ** 2, axis=1)
-        holey = jnp.where(thetas[:, 0] > 1.0, jnp.nan, cost)
-        holey = jnp.where(thetas[:, 1] > 2.0, jnp.inf, holey)
-        holey = jnp.where(thetas[:, 2] < -3.0, -jnp.inf, holey)
-        return jnp.where(self.holes, holey, cost)
-
-
-SPHERE, HOLEY = Bowl(jnp.asarray(False)), Bowl(jnp.asarray(True))
 OPT6 = IWO(LO6, HI6, iterations=300, modulation=3.0)
-
-
-def rosenbrock(thetas):
-    thetas = _in_box(thetas, LO8, HI8)
-    x, y = thetas[:, :-1], thetas[:, 1:]
-    return jnp.sum(100.0 * (y - x**2) ** 2 + (1.0 - x) ** 2, axis=1)
+rosenbrock = Rosenbrock(LO8, HI8)
 
 
 def test_sigma_matches_formula():
