@@ -15,7 +15,8 @@ from .excitation import sweep as sweep, three_two_one_one as three_two_one_one
 from .flight import FlightData as FlightData, FlightDataError as FlightDataError
 from .identify import IdentificationResult as IdentificationResult, identify as identify
 from .initial_state import estimate_x0 as estimate_x0
-from .io import DEFAULT_PX4 as DEFAULT_PX4, load as load, save_csv as save_csv, save_npz as save_npz
+from .io import DEFAULT_PX4 as DEFAULT_PX4, DEFAULT_ULOG as DEFAULT_ULOG, load as load, load_ulog as load_ulog
+from .io import save_csv as save_csv, save_npz as save_npz
 from .model import (
     G_SI as G_SI,
     INPUT_NAMES as INPUT_NAMES,

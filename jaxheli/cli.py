@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from .benchmark.command import add_parser as add_bench_parser
+
 DEFAULT_DATA = "default"
 """Name of the embedded synthetic flight (generated on the fly, see :func:`jaxheli.default_flight`)."""
 
@@ -126,7 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("evaluate", help="score a model on a flight (Pearson, TIC, RMSE, fit %%, paper cost)")
     p.add_argument("--model", required=True, help="result.json / parameters JSON, or a named set: table2")
-    p.add_argument("--data", default=DEFAULT_DATA, help="flight file (.mat .csv .npz .px4log .bin) or 'default'")
+    p.add_argument("--data", default=DEFAULT_DATA, help="flight file (.mat .csv .npz .px4log .bin .ulg) or 'default'")
     p.add_argument("--x0", choices=("estimate", "zero", "measured"), default="estimate",
                    help="initial state: least-squares estimate (default, as MATLAB compare), zero (the paper), measured")
     p.add_argument("--out", default=None, help="write the metrics as JSON here")
@@ -139,6 +141,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=None, help="random seed (default 0)")
     p.add_argument("--gust", type=float, default=0.0, help="gust standard deviation, m/s (default 0)")
     p.set_defaults(func=_cmd_synth)
+
+    add_bench_parser(sub)
     return parser
 
 

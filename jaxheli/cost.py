@@ -49,10 +49,35 @@ def pearson(sim: ArrayLike, meas: ArrayLike) -> Float[Array, "*batch k"]:
     mc = meas - jnp.mean(meas, axis=-2, keepdims=True)
     m_spread = jnp.sum(mc**2, axis=-2)
     m_spread = eqx.error_if(m_spread, m_spread <= 0, "pearson: a measured channel is constant")
-    s_spread = jnp.where(bad, 1.0, jnp.sum(sc**2, axis=-2))
-    rho = jnp.sum(sc * mc, axis=-2) / jnp.sqrt(s_spread * m_spread)
+    return pearson_from_sums(jnp.sum(sc * mc, axis=-2), jnp.sum(sc**2, axis=-2), m_spread, bad)
+
+
+def pearson_from_sums(
+    cross: Float[Array, "*batch k"],
+    s_spread: Float[Array, "*batch k"],
+    m_spread: Float[Array, "*#batch k"],
+    bad: Bool[Array, "*batch k"],
+) -> Float[Array, "*batch k"]:
+    """Pearson's rho from centred sums: ``cross = sum (s - mean s)(m - mean m)``, ``s_spread = sum (s - mean
+    s)^2``, ``m_spread`` likewise for the measurement; worst (-1) where ``bad`` or not finite, clipped to
+    [-1, 1]. The one place both the per-sample and the blocked (sums-only) costs turn sums into rho."""
+    s_spread = jnp.where(bad, 1.0, s_spread)
+    rho = jnp.where(bad, 0.0, cross) / jnp.sqrt(s_spread * m_spread)
     rho = jnp.where(bad | ~jnp.isfinite(rho), WORST_RHO, rho)
     return jnp.clip(rho, -1.0, 1.0)
+
+
+def flat_from_sums(
+    s_spread: Float[Array, "*batch k"], mean_square: Float[Array, "*batch k"], n: int
+) -> Bool[Array, "*batch k"]:
+    """Flat to within rounding, from sums alone: ``sum (s - mean)^2 <= n (100 eps)^2 rms^2``, or not finite.
+
+    The per-sample test in :func:`pearson` scales by ``max |s|``; without the samples the root mean square
+    stands in (a smaller scale, so this flags no more channels than that test does).
+    """
+    eps = jnp.finfo(s_spread.dtype).eps
+    flat = s_spread <= n * (100 * eps) ** 2 * mean_square
+    return flat | ~jnp.isfinite(s_spread) | ~jnp.isfinite(mean_square)
 
 
 def paper_cost(sim: ArrayLike, meas: ArrayLike) -> Float[Array, "*batch"]:
@@ -84,6 +109,19 @@ def fit_percent(sim: ArrayLike, meas: ArrayLike) -> Float[Array, "*batch k"]:
     den = jnp.sqrt(jnp.sum((meas - jnp.mean(meas, axis=-2, keepdims=True)) ** 2, axis=-2))
     value = 100.0 * (1.0 - num / den)
     return jnp.where(jnp.isfinite(value), value, -jnp.inf)
+
+
+def nmse(sim: ArrayLike, meas: ArrayLike) -> Float[Array, "*batch k"]:
+    """Normalised residual energy ``sum (y - m)^2 / sum (m - mean(m))^2`` per channel: the sim-to-real gap.
+
+    0 for a perfect model, 1 for predicting the channel's mean; amplitude-sensitive (unlike Pearson);
+    ``inf`` if the simulation is non-finite.
+    """
+    sim, meas = _pair(sim, meas)
+    num = jnp.sum((sim - meas) ** 2, axis=-2)
+    den = jnp.sum((meas - jnp.mean(meas, axis=-2, keepdims=True)) ** 2, axis=-2)
+    value = num / den
+    return jnp.where(jnp.isfinite(value), value, jnp.inf)
 
 
 def metrics(sim: ArrayLike, meas: ArrayLike, names: tuple[str, ...] | list[str]) -> dict[str, object]:

@@ -22,12 +22,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._types import Array, Float, Params
+from .blocked import Plan, blocked_rollout, choose_block, make_plan, population_discrete
 from .discretize import Hold, discretize
 from .flight import FlightData
 from .model import G_SI, MEASURABLE, N_STATES, build_ab, output_indices
 
 InitialState = Literal["zero", "measured"]
 Reset = Literal["carry", "zero"]
+Method = Literal["auto", "scan", "blocked"]
 
 
 class Simulator(eqx.Module):
@@ -47,13 +49,42 @@ class Simulator(eqx.Module):
     initial: InitialState | Literal["given"] = eqx.field(static=True)
     segment_samples: int = eqx.field(static=True)
     reset: Reset = eqx.field(static=True)
+    method: Literal["scan", "blocked"] = eqx.field(static=True, default="scan")
+    block: int = eqx.field(static=True, default=0)
 
     def __call__(self, theta: Params) -> Float[Array, "*batch N k"]:
         theta = jnp.asarray(theta)
         batch = theta.shape[:-1]
         flat = theta.reshape((-1, theta.shape[-1]))
-        y = jax.vmap(self._one)(flat)
+        y = _blocked_outputs(self, flat) if self.method == "blocked" else jax.vmap(self._one)(flat)
         return y.reshape(batch + y.shape[1:])
+
+    def _blocked(self, thetas: Float[Array, "P 40"]) -> Float[Array, "P N k"]:
+        d = population_discrete(thetas, self.g, self.dt, self.hold)
+        return blocked_rollout(
+            d,
+            self.inputs.astype(d.Ad.dtype),
+            self.initial_states(thetas.shape[0], d.Ad.dtype),
+            self.measured_states.astype(d.Ad.dtype),
+            np.asarray(self.measured_mask),
+            self.reset == "carry",
+            output_indices(self.outputs),
+            self.plan(),
+        )
+
+    def plan(self) -> Plan:
+        """Layout of the blocks (blocked method only)."""
+        return make_plan(self.inputs.shape[0], self.block, self.segment_samples, self.hold)
+
+    def initial_states(self, count: int, dtype) -> Float[Array, "13 P"]:
+        """``x0`` for ``count`` candidates, population last."""
+        if self.x0 is not None:
+            x0 = self.x0.astype(dtype)
+        elif self.initial == "measured":
+            x0 = self.measured_states[0].astype(dtype)
+        else:
+            x0 = jnp.zeros(N_STATES, dtype)
+        return jnp.broadcast_to(x0[:, None], (N_STATES, count))
 
     def states(self, theta: Float[Array, "40"]) -> Float[Array, "N 13"]:
         """All 13 simulated states for one parameter vector (for plots and diagnosis)."""
@@ -110,6 +141,8 @@ class Simulator(eqx.Module):
             "dt": self.dt,
             "initial_state": self.initial,
             "outputs": list(self.outputs),
+            "method": self.method,
+            "block": self.block if self.method == "blocked" else None,
         }
 
 
@@ -122,6 +155,8 @@ def make_simulator(
     x0: InitialState | Float[np.ndarray, "13"] = "zero",
     segment: float | None = None,
     reset: Reset = "carry",
+    method: Method = "auto",
+    block: int | None = None,
 ) -> Simulator:
     """Prepare a jittable simulator of ``flight``.
 
@@ -134,6 +169,11 @@ def make_simulator(
             or an explicit 13-vector.
         segment: restart interval in seconds (multiple shooting); ``None`` for one long run.
         reset: at a restart, unmeasured states are ``"carry"``-ed over or set to ``"zero"``.
+        method: ``"scan"`` (one step per sample), ``"blocked"`` (blocks of ``block`` samples: block-Toeplitz
+            products and a scan over block starts, see :mod:`jaxheli.blocked`; equal up to rounding) or
+            ``"auto"``: blocked whenever a block length fits the segment length, else scan.
+        block: block length in samples for the blocked method (default: chosen by
+            :func:`jaxheli.blocked.choose_block`); must divide the segment length.
     """
     names = tuple(flight.output_names if outputs is None else outputs)
     missing = [c for c in names if c not in flight.output_names]
@@ -165,6 +205,21 @@ def make_simulator(
         seg = int(round(segment / flight.dt))
         if seg < 1:
             raise ValueError(f"segment must be at least one sample ({flight.dt} s), got {segment} s")
+    if method not in ("auto", "scan", "blocked"):
+        raise ValueError(f"method must be 'auto', 'scan' or 'blocked', got {method!r}")
+    if method != "scan":
+        L = choose_block(seg) if block is None else int(block)
+        if L is None or (L < 1 or (seg > 0 and seg % L)):
+            if method == "blocked":
+                raise ValueError(
+                    f"method='blocked' needs a block length dividing the segment ({seg} samples); "
+                    f"got block={block}"
+                )
+            method, L = "scan", 0
+        else:
+            method = "blocked"
+    else:
+        L = 0
     return Simulator(
         inputs=jnp.asarray(flight.inputs),
         measured_states=jnp.asarray(measured),
@@ -177,7 +232,14 @@ def make_simulator(
         initial=initial,
         segment_samples=seg,
         reset=reset,
+        method=method,
+        block=L,
     )
+
+
+@eqx.filter_jit
+def _blocked_outputs(sim: Simulator, thetas: Array) -> Array:
+    return sim._blocked(thetas)  # jitted even when called eagerly: the blocked path is many small ops
 
 
 @eqx.filter_jit

@@ -10,9 +10,11 @@ from .csv import load_csv as load_csv, save_csv as save_csv
 from .mat import load_mat as load_mat
 from .mavlink import DEFAULT_PX4 as DEFAULT_PX4, load_log as load_log
 from .npz import load_npz as load_npz, save_npz as save_npz
+from .ulog import DEFAULT_ULOG as DEFAULT_ULOG, HEADER as ULOG_HEADER, load_ulog as load_ulog
 
 READERS: dict[str, Callable[..., FlightData]] = {
     ".mat": load_mat, ".csv": load_csv, ".npz": load_npz, ".px4log": load_log, ".bin": load_log,
+    ".ulg": load_ulog,
 }
 """Reader of each known file extension."""
 
@@ -20,13 +22,14 @@ _MAGIC: tuple[tuple[bytes, Callable[..., FlightData]], ...] = (
     (b"MATLAB", load_mat),  # MATLAB v5 header text
     (b"PK\x03\x04", load_npz),  # zip archive
     (b"\xa3\x95\x80", load_log),  # DataFlash/sdlog2 FMT record
+    (ULOG_HEADER, load_ulog),  # PX4 ULog header
 )
 
 
 def load(path: str | Path, **options: Any) -> FlightData:
-    """Read a flight from ``.mat``, ``.csv``, ``.npz``, ``.px4log`` or ``.bin`` (extension first, else the
-    file's first bytes); ``options`` go to the reader (:func:`load_mat`, :func:`load_csv`,
-    :func:`load_npz`, :func:`load_log`)."""
+    """Read a flight from ``.mat``, ``.csv``, ``.npz``, ``.px4log``, ``.bin`` or ``.ulg`` (extension first,
+    else the file's first bytes); ``options`` go to the reader (:func:`load_mat`, :func:`load_csv`,
+    :func:`load_npz`, :func:`load_log`, :func:`load_ulog`)."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such flight-data file")

@@ -1,0 +1,72 @@
+"""The benchmark's markdown tables and its throughput plot."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def markdown(result: dict) -> str:
+    """Tables of a ``jaxheli bench`` result: throughput over P and N, IWO generations, experiment, devices."""
+    lines = [f"# jaxheli bench: {result['machine']}", ""]
+    lines += ["## Population cost: candidate evaluations per second", "",
+              "| dtype | N | P | scan /s | blocked /s | NumPy loop /s | blocked x NumPy | blocked x scan "
+              "| FLOP-limit /s | blocked / limit |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in result["rates"]:
+        scan, blocked, base = r.get("scan", np.nan), r.get("blocked", np.nan), r["numpy"]
+        lines.append(f"| {r['dtype']} | {r['N']} | {r['P']} | {scan:.0f} | {blocked:.0f} | {base:.1f} | "
+                     f"{blocked / base:.0f} | {blocked / scan:.1f} | {r['flop_limit']:.0f} | "
+                     f"{blocked / r['flop_limit']:.2f} |")
+    if result.get("mealpy"):
+        lines += ["", "mealpy OriginalIWO on the NumPy cost, N = {N}: {rate:.1f} evaluations/s".format(**result["mealpy"])]
+    if result.get("iwo_generation"):
+        lines += ["", "## Seconds per IWO generation (280 candidates)", "", "| dtype | N | method | s/generation |",
+                  "|---|---|---|---|"]
+        lines += [f"| {g['dtype']} | {g['N']} | {g['method']} | {g['seconds']:.4f} |" for g in result["iwo_generation"]]
+    if result.get("experiment"):
+        e = result["experiment"]
+        base = e["evaluations"] / e["numpy_rate"]
+        lines += ["", "## The paper's whole experiment", "",
+                  f"{e['trials']} trials x {e['iterations']} IWO generations on {e['flight']} ({e['samples']} samples, "
+                  f"{e['dtype']}, {e['method']} kernel, {e['devices']} device(s)): **{e['seconds']:.1f} s** end to end "
+                  f"including compilation, {e['evaluations']:,} candidates scored ({e['evaluations_per_s']:.0f}/s). "
+                  f"The per-candidate NumPy loop would take {base:.0f} s ({base / 3600:.1f} h): "
+                  f"{base / e['seconds']:.0f}x longer."]
+    if result.get("scaling"):
+        lines += ["", "## Sharding over local devices", "", "| dtype | N | P | 1 device /s | "
+                  f"{result['devices']} devices /s | speed-up | efficiency |", "|---|---|---|---|---|---|---|"]
+        for s in result["scaling"]:
+            speedup = s["sharded"] / s["single"]
+            lines.append(f"| {s['dtype']} | {s['N']} | {s['P']} | {s['single']:.0f} | {s['sharded']:.0f} | "
+                         f"{speedup:.2f} | {speedup / result['devices']:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def plot_throughput(result: dict, path: str | Path) -> Path:
+    """Evaluations per second against population size, one line per method, dtype and flight length."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    rows = result["rates"]
+    for dtype in sorted({r["dtype"] for r in rows}):
+        for n in sorted({r["N"] for r in rows}):
+            sel = sorted((r for r in rows if r["dtype"] == dtype and r["N"] == n), key=lambda r: r["P"])
+            P = [r["P"] for r in sel]
+            for method, style in (("blocked", "-"), ("scan", "--")):
+                if all(method in r for r in sel):
+                    ax.loglog(P, [r[method] for r in sel], style, marker="o", label=f"{method} {dtype} N={n}")
+            ax.loglog(P, [r["numpy"] for r in sel], ":", color="grey")
+    ax.set_xlabel("population size P")
+    ax.set_ylabel("candidate evaluations / s")
+    ax.set_title("population cost throughput (dotted: per-candidate NumPy loop)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)

@@ -1,0 +1,39 @@
+"""``jaxheli bench``: its NumPy baseline agrees with the library's cost, and a quick run writes its files."""
+
+import json
+
+import numpy as np
+
+from jaxheli.benchmark.baseline import numpy_cost
+from jaxheli.benchmark.throughput import bench_flight, candidates, flops_per_candidate
+from jaxheli.cli import main
+from jaxheli.model import TABLE2
+from jaxheli.population import population_cost
+
+
+def test_numpy_baseline_is_the_same_cost():
+    """The baseline must compute what the kernels compute, or the ratios compare different work."""
+    flight = bench_flight(400)
+    thetas = np.concatenate([TABLE2[None], np.asarray(candidates(3, np.float64))])
+    ours = np.asarray(population_cost(thetas, flight, method="scan"))
+    theirs = np.array([numpy_cost(t, flight) for t in thetas])
+    np.testing.assert_allclose(theirs, ours, rtol=1e-7, atol=1e-9)
+    assert ours[0] < 0.01  # the flight was made by Table 2
+
+
+def test_flop_count_is_dominated_by_the_recurrence():
+    assert 4.0e6 < flops_per_candidate(8590) < 4.5e6  # 8590 x (2*13*13 + 2*13*4 + 24) + expm
+
+
+def test_quick_bench_writes_json_markdown_and_plot(tmp_path):
+    assert main(["bench", "--quick", "--host-devices", "1", "--out", str(tmp_path)]) == 0
+    result = json.loads((tmp_path / "bench.json").read_text())
+    assert {(r["N"], r["P"]) for r in result["rates"]} == {(300, 16), (300, 64)}
+    for row in result["rates"]:
+        assert row["blocked"] > 0 and row["scan"] > 0 and row["numpy"] > 0 and row["flop_limit"] > row["blocked"]
+    experiment = result["experiment"]
+    assert experiment["trials"] == 2 and experiment["iterations"] == 3 and len(experiment["best_cost"]) == 2
+    assert experiment["seeds"] <= experiment["evaluations"]
+    text = (tmp_path / "bench.md").read_text()
+    assert "blocked x NumPy" in text and "paper's whole experiment" in text
+    assert (tmp_path / "throughput.png").stat().st_size > 10_000
