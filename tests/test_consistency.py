@@ -1,0 +1,200 @@
+"""Data-consistency check: each defect injected into a synthetic piloted flight is found within its stated
+1-sigma uncertainty, flagged, and undone by ``correct``; a clean flight flags nothing."""
+
+import argparse
+import json
+import math
+
+import numpy as np
+import pytest
+
+from jaxheli import load, piloted_flight, save_npz
+from jaxheli.gap._regress import hac_lstsq, well_posed
+from jaxheli.gap.consistency import Finding, add_parser, check, correct
+
+KEYS = {"kind", "channels", "estimate", "uncertainty", "significant", "message"}
+
+
+@pytest.fixture(scope="module")
+def clean():
+    return piloted_flight(duration=30.0, seed=3)
+
+
+def _col(flight, name):
+    return flight.output_names.index(name)
+
+
+def _with(flight, **columns):
+    out = flight.outputs.copy()
+    for name, values in columns.items():
+        out[:, _col(flight, name)] = values
+    return flight.replace(outputs=out)
+
+
+def _rotate(flight, angle, signs=(1.0, 1.0)):
+    rot = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]]) @ np.diag(signs)
+    uv = flight.outputs[:, [0, 1]] @ rot.T
+    return _with(flight, u=uv[:, 0], v=uv[:, 1])
+
+
+def _time_base(f):
+    return f.replace(time=f.time[0] + 1.1 * (f.time - f.time[0]))
+
+
+def _lag(f):
+    return _with(f, p=np.interp(f.time - 0.06, f.time, f.output("p")))
+
+
+def _rate_bias(f):
+    return _with(f, q=f.output("q") + 0.02)
+
+
+def _rate_drift(f):
+    return _with(f, p=f.output("p") + 0.002 * (f.time - 0.5 * (f.time[0] + f.time[-1])))
+
+
+def _roll_offset(f):
+    return _with(f, phi=f.output("phi") + 0.05)
+
+
+def _pitch_drift(f):
+    return _with(f, theta=f.output("theta") + 0.002 * (f.time - 0.5 * (f.time[0] + f.time[-1])))
+
+
+DEFECTS = [
+    # (inject, kind, channels, estimate key or None, true value)
+    (_time_base, "time_scale", ("time",), None, 1.1),
+    (_lag, "kinematic_lag", ("p", "phi"), None, 0.06),
+    (_rate_bias, "rate_bias", ("q",), None, 0.02),
+    (_rate_drift, "rate_drift", ("p",), None, 0.002),
+    (lambda f: _rotate(f, math.radians(30.0)), "velocity_frame", ("u", "v"), "rotation", math.radians(30.0)),
+    (lambda f: _rotate(f, 0.0, (-1.0, 1.0)), "velocity_frame", ("u", "v"), "scale_u", -1.0),
+    (lambda f: _rotate(f, math.radians(-20.0), (1.0, -1.0)), "velocity_frame", ("u", "v"), "scale_v", -1.0),
+    (_roll_offset, "attitude_bias", ("phi",), None, 0.05),
+    (_pitch_drift, "attitude_drift", ("theta",), None, 0.002),
+]
+
+
+def _find(findings, kind, channels):
+    hits = [f for f in findings if f.kind == kind and f.channels == channels]
+    assert len(hits) == 1, f"expected one {kind} {channels} finding, got {hits}"
+    return hits[0]
+
+
+def test_clean_flight_flags_nothing(clean):
+    findings = check(clean)
+    assert not [f for f in findings if f.significant]
+    kinds = {f.kind for f in findings}
+    assert {"time_scale", "kinematic_lag", "rate_bias", "rate_drift", "velocity_frame", "attitude_bias"} <= kinds
+    for f in findings:
+        assert set(f.to_json()) == KEYS
+
+
+@pytest.mark.parametrize("inject, kind, channels, key, truth", DEFECTS,
+                         ids=[f"{d[1]}-{d[3] or d[2][0]}" for d in DEFECTS])
+def test_defect_found_within_uncertainty_and_corrected(clean, inject, kind, channels, key, truth):
+    flight = inject(clean)
+    findings = check(flight)
+    found = _find(findings, kind, channels)
+    est = found.estimate[key] if key else found.estimate
+    sigma = found.uncertainty[key] if key else found.uncertainty
+    assert found.significant, found.message
+    assert 0 < sigma < 0.2 * abs(truth)
+    assert abs(est - truth) < 3 * sigma, found.message
+    others = [f for f in findings if f.significant and f is not found]
+    assert not others, [f.message for f in others]
+
+    fixed = correct(flight, findings)
+    assert not [f.message for f in check(fixed) if f.significant]
+    assert fixed.metadata["preprocessing"][-1]["applied"][0]["kind"] == kind
+    assert "consistency.correct" == fixed.metadata["preprocessing"][-1]["step"]
+
+
+def test_correct_restores_the_clean_channels(clean):
+    rotated = _rotate(clean, math.radians(30.0), (-1.0, 1.0))
+    fixed = correct(rotated, check(rotated))
+    uv = clean.outputs[:, [0, 1]]
+    err = np.sqrt(np.mean((fixed.outputs[:, [0, 1]] - uv) ** 2)) / np.std(uv)
+    assert err < 0.05
+    stretched = _time_base(clean)
+    findings = check(stretched)
+    sigma = _find(findings, "time_scale", ("time",)).uncertainty
+    restored = correct(stretched, findings)
+    assert restored.time[0] == clean.time[0]
+    assert abs(restored.duration - clean.duration) < 3 * sigma * clean.duration
+
+
+def test_missing_constant_and_short_channels_never_crash(clean):
+    angles_only = check(clean.select(("p", "q", "phi", "theta")))
+    assert any(f.kind == "not_checked" and f.channels == ("u", "theta") for f in angles_only)
+    assert not any(f.significant for f in angles_only)
+    no_velocity = check(_with(clean, u=np.zeros(clean.n_samples), v=np.zeros(clean.n_samples)))
+    assert [f.channels for f in no_velocity if f.kind == "not_checked"] == [("u", "theta"), ("v", "phi")]
+    one_axis = check(clean.select(("u", "theta", "q")))
+    assert {f.kind for f in one_axis} >= {"time_scale", "velocity_scale", "attitude_bias", "not_checked"}
+    short = check(clean.replace(time=clean.time[:150], inputs=clean.inputs[:150], outputs=clean.outputs[:150]))
+    assert [f.kind for f in short] == ["not_checked"]
+    assert correct(clean, short).outputs.tolist() == clean.outputs.tolist()
+
+
+def test_single_velocity_channel_sign_flip(clean):
+    flight = clean.select(("u", "theta", "q"))
+    flipped = _with(flight, u=-flight.output("u"))
+    found = _find(check(flipped), "velocity_scale", ("u",))
+    assert found.significant and abs(found.estimate + 1.0) < 3 * found.uncertainty
+    assert np.allclose(correct(flipped, [found]).output("u"), flight.output("u"))
+
+
+def test_hac_standard_error_matches_ar1_long_run_variance():
+    """Mean of an AR(1) series: the Newey-West error approaches sigma / (1 - rho) / sqrt(N)."""
+    rng = np.random.default_rng(0)
+    n, rho = 20000, 0.9
+    e = rng.normal(size=n)
+    x = np.empty(n)
+    x[0] = e[0]
+    for i in range(1, n):
+        x[i] = rho * x[i - 1] + e[i]
+    fit = hac_lstsq(x, np.ones((n, 1)), min_bandwidth=50)
+    assert fit.beta[0] == pytest.approx(x.mean())
+    assert fit.se[0] == pytest.approx(1.0 / (1.0 - rho) / np.sqrt(n), rel=0.2)
+    assert not well_posed(np.stack([np.ones(n), 2 * np.ones(n)], axis=1))
+
+
+def test_finding_json_is_plain():
+    f = Finding("velocity_frame", ("u", "v"), {"rotation": np.float64(0.5)}, {"rotation": 0.01}, True, "m.")
+    assert json.loads(json.dumps(f.to_json())) == {
+        "kind": "velocity_frame", "channels": ["u", "v"], "estimate": {"rotation": 0.5},
+        "uncertainty": {"rotation": 0.01}, "significant": True, "message": "m."}
+
+
+def test_cli_handler_writes_json_and_plot(clean, tmp_path, capsys):
+    path = tmp_path / "lagged.npz"
+    save_npz(_lag(clean), path)
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["check", str(path), "--out", str(tmp_path / "out")])
+    assert args.func(args) == 0
+    rows = json.loads((tmp_path / "out" / "consistency.json").read_text())
+    assert all(set(r) == KEYS for r in rows)
+    lag = [r for r in rows if r["significant"]]
+    assert [r["kind"] for r in lag] == ["kinematic_lag"] and abs(lag[0]["estimate"] - 0.06) < 0.01
+    assert (tmp_path / "out" / "consistency.png").stat().st_size > 10000
+    assert "kinematic_lag" in capsys.readouterr().out
+    assert load(path).n_samples == clean.n_samples
+
+
+def test_real_flight_c_runs(shared_data):
+    flight = load(shared_data / "trex550" / "ppr_data.mat")
+    findings = check(flight)
+    assert all(set(f.to_json()) == KEYS for f in findings)
+    json.dumps([f.to_json() for f in findings])
+    correct(flight, findings)
+
+
+def test_correct_names_a_missing_channel(clean):
+    finding = Finding("rate_bias", ("p",), 0.1, 0.001, True, "p has a bias.")
+    with pytest.raises(ValueError, match="channel 'p'"):
+        correct(clean.select(("q", "theta")), [finding])
+    no_rates = check(clean.select(("u", "v", "phi", "theta")))
+    assert [f.channels for f in no_rates if f.kind == "not_checked"] == [("time",), ("phi", "p"), ("theta", "q")]
+    json.dumps([f.to_json() for f in no_rates], allow_nan=False)
