@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from .benchmark.command import add_parser as add_bench_parser
+from .gap.consistency import add_parser as add_check_parser
 
 DEFAULT_DATA = "default"
 """Name of the embedded synthetic flight (generated on the fly, see :func:`jaxheli.default_flight`)."""
@@ -77,6 +78,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         outputs=_outputs(args.outputs),
         checkpoint=str(out / "checkpoint.eqx") if args.method != "pem" else None,
         resume=args.resume,
+        search_precision=args.search_precision,
         **_sim_options(args),
     )
     _print_metrics(f"{args.method} on the training flight {train.source}", result.train)
@@ -123,6 +125,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--trials", type=int, default=1, help="independent trials for 95%% intervals (the paper: 10)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.eqx")
+    p.add_argument("--search-precision", choices=("float32", "float64"), default="float32",
+                   help="arithmetic of the IWO / GA population scoring (default float32: fast, checked against float64)")
     _add_sim_options(p)
     p.set_defaults(func=_cmd_identify)
 
@@ -142,6 +146,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--gust", type=float, default=0.0, help="gust standard deviation, m/s (default 0)")
     p.set_defaults(func=_cmd_synth)
 
+    add_check_parser(sub)
     add_bench_parser(sub)
     return parser
 

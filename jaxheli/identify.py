@@ -19,7 +19,7 @@ import numpy as np
 import scipy.stats
 
 from ._types import Array, Float
-from .cost import paper_cost
+from .population import simulator_cost
 from .evaluate import default_outputs, evaluate
 from .flight import FlightData
 from .model import G_SI, LOWER, PARAM_NAMES, UPPER
@@ -36,13 +36,16 @@ METHODS: tuple[str, ...] = ("iwo", "ga", "pem", "iwo+polish")
 
 
 class _PopulationCost(eqx.Module):
-    """``thetas[P, 40] -> cost[P]`` on one flight; a pytree, so the flight stays traced inside the scan."""
+    """``thetas[P, 40] -> cost[P]`` on one flight, scored in ``dtype`` (the fastest kernel the simulator
+    has, :func:`jaxheli.population.simulator_cost`); a pytree, so the flight stays traced inside the scan."""
 
     sim: Simulator
     target: Float[Array, "N k"]
+    dtype: str = eqx.field(static=True)
 
     def __call__(self, thetas: Float[Array, "P 40"]) -> Float[Array, "P"]:
-        return paper_cost(self.sim(thetas), self.target)
+        cost = simulator_cost(self.sim, thetas.astype(self.dtype), self.target.astype(self.dtype))
+        return cost.astype(thetas.dtype)
 
 
 @dataclasses.dataclass
@@ -121,6 +124,7 @@ def identify(
     start: Float[np.ndarray, "40"] | None = None,
     polish_steps: int = 100,
     pem_segment: float = 5.0,
+    search_precision: Literal["float32", "float64"] = "float32",
     chunk: int = 50,
     checkpoint: str | None = None,
     resume: bool = False,
@@ -142,6 +146,9 @@ def identify(
         start: PEM's start (default: the middle of the bounds; random in the box for trials > 1).
         polish_steps: Levenberg-Marquardt steps of the polish.
         pem_segment: predictor restart interval of PEM, s (keeps unstable candidates usable).
+        search_precision: arithmetic of the IWO / GA population scoring (float32, the default, is several
+            times faster and its costs agree with float64 to 1e-3, see ``tests/test_blocked.py``); the polish,
+            PEM and every reported metric run in the session's precision (float64 unless disabled).
         chunk, checkpoint, resume, progress: run control of :func:`jaxheli.optim.run.minimize`.
     """
     if method not in METHODS:
@@ -159,7 +166,7 @@ def identify(
         fit_options = {"outputs": names, "segment": pem_segment, "hold": hold, "g": g, "x0": "measured"}
     else:
         sim = make_simulator(flight, x0="zero", **sim_options)
-        cost_fn = _PopulationCost(sim, jnp.asarray(flight.select(names).outputs))
+        cost_fn = _PopulationCost(sim, jnp.asarray(flight.select(names).outputs), search_precision)
         engine = (IWO if method != "ga" else GA)(lower=lower, upper=upper, iterations=iterations)
         keys = jax.random.split(key, trials)
         run = (
@@ -190,7 +197,7 @@ def identify(
         "method": method, "iterations": iterations, "trials": trials, "outputs": list(names),
         "segment": segment, "hold": hold, "g": g, "pem_segment": pem_segment, "polish_steps": polish_steps,
         "train_source": flight.source, "validate_source": None if validate is None else validate.source,
-        "x64": bool(jax.config.jax_enable_x64),
+        "x64": bool(jax.config.jax_enable_x64), "search_precision": search_precision,
     }
     train_block = evaluate(params, flight, x0=fit_options["x0"], **{k: v for k, v in fit_options.items() if k != "x0"})
     return IdentificationResult(
