@@ -9,6 +9,7 @@ from pathlib import Path
 
 from .benchmark.command import add_parser as add_bench_parser
 from .gap.consistency import add_parser as add_check_parser
+from .gap.localise_cli import add_parser as add_localise_parser
 
 DEFAULT_DATA = "default"
 """Name of the embedded synthetic flight (generated on the fly, see :func:`jaxheli.default_flight`)."""
@@ -147,6 +148,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_synth)
 
     add_check_parser(sub)
+    add_localise_parser(sub)
     add_bench_parser(sub)
     return parser
 
