@@ -10,6 +10,7 @@ from pathlib import Path
 from .benchmark.command import add_parser as add_bench_parser
 from .gap.consistency import add_parser as add_check_parser
 from .gap.localise_cli import add_parser as add_localise_parser
+from .report.command import add_parser as add_report_parser
 
 DEFAULT_DATA = "default"
 """Name of the embedded synthetic flight (generated on the fly, see :func:`jaxheli.default_flight`)."""
@@ -150,6 +151,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_check_parser(sub)
     add_localise_parser(sub)
     add_bench_parser(sub)
+    add_report_parser(sub)
     return parser
 
 

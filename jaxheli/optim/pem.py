@@ -83,7 +83,7 @@ def _problem(
     g: float,
 ) -> _Problem:
     # The step-by-step scan: under linearise/vmap/transpose it compiles ~30 % faster than "blocked".
-    sim = make_simulator(flight, outputs=outputs, segment=segment, hold=hold, x0=x0, g=g)
+    sim = make_simulator(flight, outputs=outputs, segment=segment, hold=hold, x0=x0, g=g, method="scan")
     target = flight.select(sim.outputs).outputs
     std = target.std(axis=0)
     flat = [c for c, s in zip(sim.outputs, std) if not s > 0]

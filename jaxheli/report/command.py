@@ -1,0 +1,34 @@
+"""``jaxheli report RESULT... [--diagnosis DIR_OR_JSON] [--data FILE] --out report.html``."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register ``report`` on the ``jaxheli`` command line."""
+    p = subparsers.add_parser(
+        "report",
+        help="one self-contained HTML report of identification results (tables, plots, gap diagnosis)",
+        description="Compare one or several results of 'jaxheli identify' side by side in one HTML file with no "
+        "external resources: data summary, parameters with 95%% intervals and standard errors, Table-1 metrics, "
+        "time-domain verification, frequency responses with coherence, convergence curves and the gap diagnosis.",
+    )
+    p.add_argument("results", nargs="+", metavar="RESULT", help="result folder or result.json of jaxheli identify")
+    p.add_argument("--diagnosis", default=None, metavar="DIR_OR_JSON",
+                   help="folder or file of jaxheli diagnose (diagnosis.json) or jaxheli check (consistency.json)")
+    p.add_argument("--data", action="append", default=[], metavar="FILE",
+                   help="flight file to plot (repeatable; 'default' for the embedded flight); default: the training "
+                   "and validation files recorded in each result.json, when they exist")
+    p.add_argument("--out", default="report.html", help="output HTML file (default report.html)")
+    p.set_defaults(func=run)
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    """Handler of ``jaxheli report``: write the HTML file and print its path."""
+    from .build import write_report
+
+    path = write_report(args.results, args.out, diagnosis=args.diagnosis, data=args.data)
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
+    return 0
