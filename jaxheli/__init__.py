@@ -8,6 +8,7 @@ identification engines (:mod:`jaxheli.optim`, :func:`jaxheli.identify`).
 
 from .cost import fit_percent as fit_percent, metrics as metrics, paper_cost as paper_cost
 from .cost import pearson as pearson, rmse as rmse, tic as tic
+from . import distributed as distributed, gap as gap
 from .discretize import Discrete as Discrete, discretize as discretize
 from .evaluate import evaluate as evaluate, resolve_params as resolve_params
 from .excitation import Excitation as Excitation, doublet as doublet, multisine as multisine
@@ -35,10 +36,12 @@ from .model import (
     params_dict as params_dict,
 )
 from .optim import GA as GA, IWO as IWO, minimize as minimize, minimize_trials as minimize_trials
+from .distributed import minimize_trials_distributed as minimize_trials_distributed
 from .optim import pem as pem, polish as polish, standard_errors as standard_errors
 from .population import population_cost as population_cost
 from .preprocess import detrend as detrend, from_samples as from_samples, lowpass as lowpass
 from .preprocess import resample as resample, split as split, trim as trim
+from .report import build_report as build_report, write_report as write_report
 from .results import save_result as save_result
 from .simulate import Simulator as Simulator, make_simulator as make_simulator, simulate as simulate
 from .synth import Pilot as Pilot, default_flight as default_flight, piloted_flight as piloted_flight

@@ -125,6 +125,7 @@ def identify(
     polish_steps: int = 100,
     pem_segment: float = 5.0,
     search_precision: Literal["float32", "float64"] = "float32",
+    engine_options: dict[str, Any] | None = None,
     chunk: int = 50,
     checkpoint: str | None = None,
     resume: bool = False,
@@ -149,6 +150,8 @@ def identify(
         search_precision: arithmetic of the IWO / GA population scoring (float32, the default, is several
             times faster and its costs agree with float64 to 1e-3, see ``tests/test_blocked.py``); the polish,
             PEM and every reported metric run in the session's precision (float64 unless disabled).
+        engine_options: further hyperparameters of :class:`~jaxheli.optim.IWO` / :class:`~jaxheli.optim.GA`
+            (e.g. ``{"modulation": 3.0}``; default: the paper's settings).
         chunk, checkpoint, resume, progress: run control of :func:`jaxheli.optim.run.minimize`.
     """
     if method not in METHODS:
@@ -167,7 +170,8 @@ def identify(
     else:
         sim = make_simulator(flight, x0="zero", **sim_options)
         cost_fn = _PopulationCost(sim, jnp.asarray(flight.select(names).outputs), search_precision)
-        engine = (IWO if method != "ga" else GA)(lower=lower, upper=upper, iterations=iterations)
+        engine_type = IWO if method != "ga" else GA
+        engine = engine_type(lower=lower, upper=upper, iterations=iterations, **(engine_options or {}))
         keys = jax.random.split(key, trials)
         run = (
             minimize_trials(engine, cost_fn, keys, chunk=chunk, progress=progress, checkpoint=checkpoint, resume=resume)
@@ -198,6 +202,7 @@ def identify(
         "segment": segment, "hold": hold, "g": g, "pem_segment": pem_segment, "polish_steps": polish_steps,
         "train_source": flight.source, "validate_source": None if validate is None else validate.source,
         "x64": bool(jax.config.jax_enable_x64), "search_precision": search_precision,
+        "engine_options": dict(engine_options or {}),
     }
     train_block = evaluate(params, flight, x0=fit_options["x0"], **{k: v for k, v in fit_options.items() if k != "x0"})
     return IdentificationResult(

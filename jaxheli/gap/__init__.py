@@ -2,3 +2,10 @@
 
 The gap of a channel is its normalised residual energy, :func:`jaxheli.cost.nmse`.
 """
+
+from .consistency import Finding as Finding, check as check, correct as correct
+from .frequency import FrequencyResponse as FrequencyResponse, estimate_frequency_response as estimate_frequency_response
+from .frequency import mismatch as mismatch, model_frequency_response as model_frequency_response
+from .frequency import residual_frequency_response as residual_frequency_response
+from .localise import localise as localise
+from .localise_cli import frequency_comparison as frequency_comparison, localise_model as localise_model
