@@ -21,6 +21,7 @@ from ._types import Array, ArrayLike, Float
 from .discretize import discretize
 from .excitation import Excitation
 from .flight import FlightData
+from .gap import augmented
 from .model import G_SI, INPUT_NAMES, MEASURABLE, N_PARAMS, STATE_NAMES, TABLE2, build_ab, output_indices
 
 DEFAULT_OUTPUTS: tuple[str, ...] = ("u", "v", "p", "q", "phi", "theta", "w", "r")
@@ -120,6 +121,7 @@ def piloted_flight(
     g: float = G_SI,
     pilot: Pilot = Pilot(),
     outputs: tuple[str, ...] = DEFAULT_OUTPUTS,
+    effect: Float[ArrayLike, "E"] | None = None,
 ) -> FlightData:
     """Fly the truth model ``theta`` for ``duration`` s at sample time ``dt`` (s) under a pilot; record it.
 
@@ -131,6 +133,9 @@ def piloted_flight(
     derivatives (the aerodynamics see body velocity minus wind): process noise. ``noise`` is a multiple
     of :data:`DEFAULT_NOISE` or a ``{channel: std}`` map naming every output. ``seed`` fixes gust and
     measurement noise (``jax.random``). Inputs are the applied sticks; outputs the measured ``outputs``.
+    ``effect`` (``eta`` of :mod:`jaxheli.gap.augmented` for ``outputs``) injects unmodelled effects into the
+    truth plant (delay, lag, saturation between the recorded sticks and the rotor, drag, rotor-speed
+    coupling, sensor errors); the pilot still designs on ``theta`` alone. Gusts stay ``gust``'s.
     """
     theta = np.asarray(theta, dtype=np.float64)
     _check(theta.shape == (N_PARAMS,) and bool(np.all(np.isfinite(theta))),
@@ -159,11 +164,21 @@ def piloted_flight(
         K, poles = pilot.gain(Ad, Bd, dt)
         key_gust, key_meas = jax.random.split(jax.random.key(seed))
         white = jax.random.normal(key_gust, (n, len(_GUST_STATES)), jnp.float64)
-        states, applied = _fly(Ad, Bd, Ed, K, sticks, white, gust, float(np.exp(-dt / gust_tau)),
-                               pilot.lag_samples(dt))
+        rho = float(np.exp(-dt / gust_tau))
+        if effect is None:
+            states, applied = _fly(Ad, Bd, Ed, K, sticks, white, gust, rho, pilot.lag_samples(dt))
+            clean = np.asarray(states)[:, channels]
+        else:
+            effect = np.asarray(effect, dtype=np.float64)
+            _check(effect.shape == (augmented.size(outputs),) and bool(np.all(np.isfinite(effect))),
+                   f"piloted_flight: effect must be {augmented.size(outputs)} finite values (jaxheli.gap.augmented"
+                   f" layout for {outputs}), got shape {effect.shape}")
+            max_delay = float(np.max(np.abs(effect[augmented.layout(outputs)["delay"]]))) + dt
+            plant = augmented.make_plant(theta, effect, dt, outputs, g=g, max_delay=max_delay)
+            states, applied, clean = _fly_effect(plant, K, sticks, white, time, gust, rho, pilot.lag_samples(dt))
         meas_noise = jax.random.normal(key_meas, (n, len(outputs)), jnp.float64) * std[None, :]
         states, applied = np.asarray(states), np.asarray(applied)
-        measured = states[:, channels] + np.asarray(meas_noise)
+        measured = np.asarray(clean) + np.asarray(meas_noise)
     if not np.all(np.isfinite(states)):
         raise ValueError("piloted_flight: the pilot lost control (non-finite states); lower the excitation "
                          "amplitudes or the gusts, or raise Pilot.max_stick")
@@ -189,6 +204,7 @@ def piloted_flight(
         "stick_rms": dict(zip(INPUT_NAMES, np.sqrt(np.mean(applied**2, axis=0)).tolist())),
         "saturated_fraction": float(np.mean(np.any(np.abs(applied) >= 1.0, axis=1))),
         "initial_state": [0.0] * len(STATE_NAMES),
+        "effect": None if effect is None else effect.tolist(),
     }
     return FlightData(time, applied, measured, outputs, source=f"synthetic piloted flight (seed {seed})",
                       metadata=metadata)
@@ -232,6 +248,31 @@ def _fly(
     init = (jnp.zeros(Ad.shape[0]), jnp.zeros((lag, Bd.shape[1])), jnp.zeros(Ed.shape[1]))
     _, (states, applied) = jax.lax.scan(step, init, (jnp.asarray(excitation), jnp.asarray(white)))
     return states, applied
+
+
+@functools.partial(jax.jit, static_argnames="lag")
+def _fly_effect(
+    plant: augmented.Plant, K: Array, excitation: Array, white: Array, time: Array, gust: float, rho: float,
+    lag: int,
+) -> tuple[Float[Array, "N 13"], Float[Array, "N 4"], Float[Array, "N k"]]:
+    """:func:`_fly` with the effect-augmented truth plant; also returns the clean sensor outputs."""
+
+    def step(carry, inputs):
+        x, pending, wind, history, servo, rotor = carry
+        extra, w, t = inputs
+        command = -K @ jnp.concatenate([x, pending.ravel()])
+        applied = jnp.clip((pending[0] if lag else command) + extra, -1.0, 1.0)
+        pending = jnp.concatenate([pending[1:], command[None]]) if lag else pending
+        history, servo = plant.actuate(history, servo, applied)
+        x_next, rotor = plant.advance(x, rotor, servo, wind)
+        wind_next = rho * wind + jnp.sqrt(1.0 - rho**2) * gust * w
+        return (x_next, pending, wind_next, history, servo, rotor), (x, applied, plant.measure(x, t))
+
+    history, servo, rotor = plant.init_actuators()
+    init = (jnp.zeros(plant.Ad.shape[0]), jnp.zeros((lag, plant.B.shape[1])), jnp.zeros(plant.E.shape[1]),
+            history, servo, rotor)
+    _, out = jax.lax.scan(step, init, (jnp.asarray(excitation), jnp.asarray(white), jnp.asarray(time)))
+    return out
 
 
 def _noise_levels(noise: float | Mapping[str, float], outputs: tuple[str, ...]) -> np.ndarray:

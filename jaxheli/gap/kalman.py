@@ -1,0 +1,57 @@
+"""Steady-state Kalman filter of the plant plus a first-order gust model: the filter-error idea.
+
+The wind on u, v, w is first-order Gauss-Markov (``wind+ = rho wind + sqrt(1 - rho^2) sigma white``,
+``rho = exp(-dt / tau)``), the same process :func:`jaxheli.piloted_flight` flies. Augmenting the state
+with it, the steady-state predicted covariance solves the filter Riccati equation; it is computed by the
+structure-preserving doubling algorithm (a fixed number of doublings, so jit/vmap/grad friendly).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from .._types import Array, Float
+from .augmented import GUST_STATES, Plant
+
+_DOUBLINGS = 24
+_FLOOR = 1e-12
+"""Process-noise variance floor on every state: keeps unstable modes reachable, so the doubling converges."""
+
+
+def riccati(
+    F: Float[Array, "n n"], H: Float[Array, "k n"], Q: Float[Array, "n n"], R: Float[Array, "k k"]
+) -> Float[Array, "n n"]:
+    """Stabilising ``P = F P F' - F P H' (H P H' + R)^-1 H P F' + Q`` by doubling (needs ``R`` > 0)."""
+    n = F.shape[0]
+    eye = jnp.eye(n, dtype=F.dtype)
+
+    def double(_, c):
+        A, G, X = c
+        W = eye + G @ X
+        AW = jnp.linalg.solve(W.T, A.T).T  # A W^-1
+        return AW @ A, G + AW @ G @ A.T, X + A.T @ X @ jnp.linalg.solve(W, A)
+
+    G0 = H.T @ jnp.linalg.solve(R, H)
+    _, _, P = jax.lax.fori_loop(0, _DOUBLINGS, double, (F.T, G0, Q))
+    return 0.5 * (P + P.T)
+
+
+def gust_filter(plant: Plant, noise_var: Float[Array, "k"]) -> tuple[Array, Array, Array]:
+    """``(F, G, K)``: augmented transition ``[x, wind]``, stick input and steady-state filter gain.
+
+    ``plant``'s ``gust`` group gives sigma (m/s) and tau (s); ``noise_var`` is each output's measurement
+    noise variance. Every state carries a ``1e-12`` variance floor (harmless beside the noise).
+    The update is ``z|k = z|k-1 + K (y - H z|k-1)`` on the output states.
+    """
+    sigma, tau = plant.group("gust")
+    rho = jnp.exp(-plant.dt / (jnp.abs(tau) + 1e-6))
+    n, m = plant.Ad.shape[0], len(GUST_STATES)
+    F = jnp.block([[plant.Ad, plant.E], [jnp.zeros((m, n)), rho * jnp.eye(m)]])
+    G = jnp.concatenate([plant.B, jnp.zeros((m, plant.B.shape[1]))], axis=0)
+    H = jnp.concatenate([plant.C, jnp.zeros((plant.C.shape[0], m))], axis=1)
+    q = jnp.concatenate([jnp.full(n, _FLOOR), jnp.full(m, sigma**2 * (1.0 - rho**2) + _FLOOR)])
+    R = jnp.diag(noise_var)
+    P = riccati(F, H, jnp.diag(q), R)
+    K = P @ H.T @ jnp.linalg.inv(H @ P @ H.T + R)
+    return F, G, K

@@ -1,0 +1,149 @@
+"""Rank candidate effects by how far each shrinks the held-out gap, with a significance test.
+
+Parsimony is validation-only scoring: every candidate is fitted on the training flight and scored on the
+validation flight, so extra parameters earn nothing unless they predict new data. Significance: the
+validation record is cut into the predictor's restart segments; a candidate is significant when its
+per-segment residual energy is below the base model's by a one-sided paired t-test at level ``alpha``
+and its total shrink is at least ``min_shrink`` %. When none is, the verdict is "no significant effect".
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import scipy.stats
+
+from .._types import ArrayLike, Float
+from ..flight import FlightData
+from ..model import G_SI
+from . import effects as fx
+from .augmented import no_effect
+from .fit_effect import Fit, embed, fit_candidates, score
+from .predictor import Predictor, make_predictor
+
+
+def shrink_entries(
+    names: list[str], outputs: tuple[str, ...], fit: Fit, gap_base: np.ndarray,
+    gaps: np.ndarray, seg_base: np.ndarray, segs: np.ndarray, alpha: float, min_shrink: float,
+) -> list[dict[str, Any]]:
+    """Ranking entries ``{effect, where, params, shrink_pct, shrink_by_channel, significant, ...}``, best first.
+
+    ``gap_base[k]``/``gaps[C, k]`` are validation gaps, ``seg_base[S]``/``segs[C, S]`` segment energies.
+    """
+    total_base = float(np.mean(gap_base))
+    out = []
+    for c, name in enumerate(names):
+        parts = name.split("+")
+        value = np.asarray(fit.z[c])
+        stderr = np.asarray(fit.stderr[c])
+        params, where, sentence, offset = {}, [], [], 0
+        for part in parts:
+            n = len(fx.params(part, outputs))
+            p, w, s = fx.describe(part, outputs, value[offset:offset + n], stderr[offset:offset + n])
+            params.update(p)
+            where += w
+            sentence.append(s)
+            offset += n
+        shrink = 100.0 * (total_base - float(np.mean(gaps[c]))) / total_base
+        d = seg_base - segs[c]
+        p_value = float(scipy.stats.ttest_1samp(d, 0.0, alternative="greater").pvalue) if np.std(d) > 0 else 1.0
+        out.append({
+            "effect": name,
+            "where": where,
+            "params": params,
+            "shrink_pct": shrink,
+            "shrink_by_channel": {ch: 100.0 * float((gb - g) / gb) for ch, gb, g in zip(outputs, gap_base, gaps[c])},
+            "significant": bool(p_value < alpha and shrink >= min_shrink),
+            "p_value": p_value,
+            "gap_base": total_base,
+            "gap": float(np.mean(gaps[c])),
+            "summary": "; ".join(sentence),
+            "converged": bool(fit.converged[c]),
+        })
+    return sorted(out, key=lambda e: -e["shrink_pct"])
+
+
+def _evaluate(
+    train: Predictor, validate: Predictor, theta: Float[ArrayLike, "40"], names: list[str], combine: bool,
+    max_steps: int, alpha: float, min_shrink: float,
+) -> list[dict[str, Any]]:
+    outputs = train.outputs
+    index, start = fx.candidate_arrays(names, outputs, combine=combine)
+    base = jnp.asarray(no_effect(outputs))
+    theta = jnp.asarray(theta)
+    fit = fit_candidates(train, theta, base, jnp.asarray(index), jnp.asarray(start), max_steps)
+    etas = jax.vmap(lambda i, z: embed(base, i, z))(jnp.asarray(index), fit.z)
+    gaps, segs = (np.asarray(a) for a in score(validate, theta, jnp.concatenate([base[None, :], etas], axis=0)))
+    labels = ["+".join(names)] if combine else list(names)
+    return shrink_entries(labels, outputs, fit, gaps[0], gaps[1:], segs[0], segs[1:], alpha, min_shrink)
+
+
+def rank_effects(
+    base_theta: Float[ArrayLike, "40"],
+    train: FlightData,
+    validate: FlightData,
+    effects: tuple[str, ...] | list[str] = fx.ALL,
+    *,
+    segment: float = 2.0,
+    g: float = G_SI,
+    max_steps: int = 40,
+    alpha: float = 0.01,
+    min_shrink: float = 2.0,
+) -> list[dict[str, Any]]:
+    """Fit each effect on ``train`` (base ``theta`` fixed), score on ``validate``; ranking entries best first.
+
+    ``segment`` (s) is the predictor's restart interval; ``alpha`` and ``min_shrink`` (%) the significance
+    test (see the module docstring). Both flights must carry the same output channels.
+    """
+    train_pred, validate_pred = _predictors(train, validate, segment, g)
+    return _evaluate(train_pred, validate_pred, base_theta, list(effects), False, max_steps, alpha, min_shrink)
+
+
+def combine_effects(
+    base_theta: Float[ArrayLike, "40"],
+    train: FlightData,
+    validate: FlightData,
+    effects: tuple[str, ...] | list[str],
+    *,
+    segment: float = 2.0,
+    g: float = G_SI,
+    max_steps: int = 40,
+    alpha: float = 0.01,
+    min_shrink: float = 2.0,
+) -> dict[str, Any]:
+    """The effects fitted jointly, one ranking entry named ``"a+b+..."``."""
+    if not effects:
+        raise ValueError("combine_effects: name at least one effect")
+    train_pred, validate_pred = _predictors(train, validate, segment, g)
+    return _evaluate(train_pred, validate_pred, base_theta, list(effects), True, max_steps, alpha, min_shrink)[0]
+
+
+def diagnose_effects(
+    base_theta: Float[ArrayLike, "40"], train: FlightData, validate: FlightData,
+    effects: tuple[str, ...] | list[str] = fx.ALL, *, top: int = 3, **options,
+) -> dict[str, Any]:
+    """``{"ranking", "combination", "verdict"}``: the ranking, the joint fit of the (up to ``top``)
+    significant effects (``None`` unless two or more), and a sentence."""
+    ranking = rank_effects(base_theta, train, validate, effects, **options)
+    chosen = [e["effect"] for e in ranking if e["significant"]][:top]
+    combination = combine_effects(base_theta, train, validate, chosen, **options) if len(chosen) > 1 else None
+    return {"ranking": ranking, "combination": combination, "verdict": verdict(ranking)}
+
+
+def verdict(ranking: list[dict[str, Any]]) -> str:
+    """The best significant effect in words, or ``"no significant effect"``."""
+    best = [e for e in ranking if e["significant"]]
+    if not best:
+        return "no significant effect"
+    e = best[0]
+    return f"{e['effect']} ({e['summary']}): gap shrinks {e['shrink_pct']:.1f} % on the validation flight"
+
+
+def _predictors(train: FlightData, validate: FlightData, segment: float, g: float) -> tuple[Predictor, Predictor]:
+    if train.output_names != validate.output_names:
+        raise ValueError(f"{validate.source}: output channels {validate.output_names} differ from the training "
+                         f"flight's {train.output_names} ({train.source})")
+    return make_predictor(train, segment=segment, g=g), make_predictor(validate, segment=segment, g=g)

@@ -1,0 +1,154 @@
+"""Candidate effects: the augmented plant against numpy/scipy references, synthetic injection, ranking."""
+
+import os
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import scipy.linalg
+import scipy.signal
+
+from jaxheli import make_simulator
+from jaxheli.excitation import Excitation
+from jaxheli.gap import augmented, effects
+from jaxheli.gap.kalman import gust_filter, riccati
+from jaxheli.gap.predictor import make_predictor, noise_variance
+from jaxheli.gap.ranking import rank_effects, verdict
+from jaxheli.model import TABLE2
+from jaxheli.synth import DEFAULT_OUTPUTS, piloted_flight
+
+OUT = DEFAULT_OUTPUTS
+DT = 0.05
+SHORT = Excitation("3211", amplitude=(0.2, 0.2, 0.2, 0.2), unit=0.4)
+LAY = augmented.layout(OUT)
+
+
+def _eta(**groups):
+    eta = augmented.no_effect(OUT)
+    for name, (i, value) in groups.items():
+        eta[LAY[name].start + i] = value
+    return eta
+
+
+def _flight(eta, seed=0, noise=0.0, duration=20.0, excitation=SHORT):
+    return piloted_flight(TABLE2, duration=duration, dt=DT, excitation=excitation, seed=seed, noise=noise,
+                          effect=eta)
+
+
+def test_no_effect_predictor_is_the_base_simulator():
+    flight = _flight(None, noise=1.0)
+    sim = make_simulator(flight, segment=2.0, x0="measured", method="scan")
+    expected = np.asarray(sim(TABLE2))
+    got = np.asarray(make_predictor(flight, segment=2.0)(jnp.asarray(TABLE2), jnp.asarray(augmented.no_effect(OUT))))
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-8)  # the gust filter's 1e-12 variance floor
+
+
+def test_actuators_match_numpy_references():
+    rng = np.random.default_rng(0)
+    sticks = rng.normal(0.0, 0.3, (200, 4))
+    delay, lag, level = 0.085, 0.12, 0.2
+    eta = _eta(delay=(1, delay), lag=(2, lag), sat=(3, level**-2))
+    plant = augmented.make_plant(jnp.asarray(TABLE2), jnp.asarray(eta), DT, OUT)
+
+    def step(carry, stick):
+        history, servo = plant.actuate(*carry, stick)
+        return (history, servo), servo
+
+    history, servo, _ = plant.init_actuators()
+    _, applied = jax.lax.scan(step, (history, servo), jnp.asarray(sticks))
+    t = DT * np.arange(200)
+    np.testing.assert_allclose(applied[:, 0], sticks[:, 0], atol=1e-14)
+    before = DT * np.arange(-5, 0)  # trim (zero sticks) before the record
+    reference = np.interp(t - delay, np.r_[before, t], np.r_[np.zeros(5), sticks[:, 1]])
+    np.testing.assert_allclose(applied[:, 1], reference, atol=1e-12)
+    a = lag / (lag + DT)
+    np.testing.assert_allclose(applied[:, 2], scipy.signal.lfilter([1 - a], [1, -a], sticks[:, 2]), atol=1e-12)
+    np.testing.assert_allclose(applied[:, 3], sticks[:, 3] / np.sqrt(1 + (sticks[:, 3] / level) ** 2), atol=1e-14)
+    assert np.max(np.abs(applied[:, 3])) < level
+
+
+def test_sensor_model_rotation_scale_bias_and_inverse():
+    eps, sq, bias, drift = 0.05, 0.07, 0.3, 0.01
+    eta = _eta(mis=(0, eps), bias=(OUT.index("v"), bias), drift=(OUT.index("v"), drift))
+    eta[LAY["mis"].start + 2] = sq
+    plant = augmented.make_plant(jnp.asarray(TABLE2), jnp.asarray(eta), DT, OUT)
+    x = np.random.default_rng(1).normal(size=13)
+    t = 3.0
+    y = np.asarray(plant.measure(jnp.asarray(x), t))
+    s = dict(zip(("u", "v", "p", "q", "phi", "theta", "a", "b", "w", "r"), x))
+    c, n = np.cos(eps), np.sin(eps)
+    expected = [c * s["u"] + n * s["v"], -n * s["u"] + c * s["v"] + bias + drift * t,
+                c * s["p"] + n * (1 + sq) * s["q"], -n * s["p"] + c * (1 + sq) * s["q"],
+                c * s["phi"] + n * s["theta"], -n * s["phi"] + c * s["theta"], s["w"], s["r"]]
+    np.testing.assert_allclose(y, expected, atol=1e-14)
+    back = plant.unmeasure(jnp.asarray(y)[None, :], jnp.asarray([t]))[0]
+    np.testing.assert_allclose(back, x[[0, 1, 2, 3, 4, 5, 8, 9]], atol=1e-13)
+
+
+def test_riccati_matches_scipy_and_gain_vanishes_without_gusts():
+    plant = augmented.make_plant(jnp.asarray(TABLE2), jnp.asarray(_eta(gust=(0, 0.6))), DT, OUT)
+    var = jnp.asarray([2e-3, 2e-3, 2e-4, 2e-4, 3e-5, 3e-5, 2e-3, 2e-4])
+    F, _, K = gust_filter(plant, var)
+    H = np.concatenate([np.asarray(plant.C), np.zeros((8, 3))], axis=1)
+    rho = np.exp(-DT / 1.0)
+    Q = np.diag(np.r_[np.full(13, 1e-12), np.full(3, 0.36 * (1 - rho**2) + 1e-12)])
+    P = scipy.linalg.solve_discrete_are(np.asarray(F).T, H.T, Q, np.diag(np.asarray(var)))
+    np.testing.assert_allclose(riccati(F, jnp.asarray(H), jnp.asarray(Q), jnp.diag(var)), P, rtol=1e-7, atol=1e-12)
+    np.testing.assert_allclose(K, P @ H.T @ np.linalg.inv(H @ P @ H.T + np.diag(np.asarray(var))), rtol=1e-4, atol=1e-8)
+    quiet = augmented.make_plant(jnp.asarray(TABLE2), jnp.asarray(augmented.no_effect(OUT)), DT, OUT)
+    assert np.max(np.abs(np.asarray(gust_filter(quiet, var)[2])[13:])) < 1e-3
+
+
+def test_noise_variance_of_white_noise():
+    rng = np.random.default_rng(2)
+    t = np.arange(20000) * 0.01
+    y = np.sin(0.5 * t)[:, None] + rng.normal(0, [0.05, 0.2], (20000, 2))
+    np.testing.assert_allclose(noise_variance(y), [0.05**2, 0.2**2], rtol=0.05)
+
+
+@pytest.mark.parametrize("groups", [
+    {"delay": (1, 0.07), "lag": (0, 0.1)},
+    {"sat": (2, 0.2**-2), "drag": (0, -2.0), "rotor": (0, 3.0)},
+    {"mis": (0, 0.06), "bias": (2, 0.05), "drift": (0, 0.01)},
+], ids=["input", "plant", "sensor"])
+def test_injected_truth_is_reproduced_by_its_predictor(groups):
+    eta = _eta(**groups)
+    flight = _flight(eta)
+    base = _flight(None)
+    assert np.max(np.abs(flight.outputs - base.outputs)) > 1e-3  # the effect shows in the record
+    pred = make_predictor(flight, segment=5.0)
+    y = np.asarray(pred(jnp.asarray(TABLE2), jnp.asarray(eta)))
+    np.testing.assert_allclose(y, flight.outputs, atol=1e-6)  # restarts inject the floor-level wind estimate
+
+
+def test_params_layout_and_errors():
+    index, start = effects.candidate_arrays(effects.ALL, OUT)
+    assert index.shape == (8, 2 * len(OUT))
+    assert set(index[0, :4]) == set(range(LAY["delay"].start, LAY["delay"].stop))
+    assert np.all(index[0, 4:] == augmented.size(OUT))
+    with pytest.raises(ValueError, match="unknown effect"):
+        effects.params("gremlins", OUT)
+    with pytest.raises(ValueError, match="eta"):
+        augmented.make_plant(jnp.asarray(TABLE2), jnp.zeros(3), DT, OUT)
+    with pytest.raises(ValueError, match="effect"):
+        piloted_flight(TABLE2, duration=20.0, dt=DT, excitation=SHORT, effect=np.zeros(3))
+
+
+@pytest.mark.skipif(os.environ.get("JAXHELI_SLOW_TESTS", "") in ("", "0"),
+                    reason="vmapped LM fit: minutes to compile on a loaded 2-core box, where XLA also hung")
+def test_rank_effects_finds_an_injected_lon_delay():
+    delay = 0.08
+    eta = _eta(delay=(1, delay))
+    short = Excitation("3211", amplitude=(0.2,) * 4, unit=0.3)
+    train = _flight(eta, seed=3, noise=1.0, duration=12.0, excitation=short)
+    validate = _flight(eta, seed=4, noise=1.0, duration=12.0, excitation=Excitation("3211", amplitude=(0.25,) * 4, unit=0.35))
+    ranking = rank_effects(TABLE2, train, validate, max_steps=15)  # shapes of tests/test_blind.py: one compile
+    top = ranking[0]
+    assert top["effect"] == "input_delay" and top["significant"]
+    assert top["where"] == ["lon"]
+    est = top["params"]["delay_lon"]
+    assert abs(est["value"] - delay) < max(4 * est["stderr"], 0.005)
+    assert top["shrink_pct"] > 50 and set(top["shrink_by_channel"]) == set(OUT)
+    assert not ranking[-1]["significant"]
+    assert verdict(ranking).startswith("input_delay")
