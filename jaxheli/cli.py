@@ -9,7 +9,9 @@ from pathlib import Path
 
 from .benchmark.command import add_parser as add_bench_parser
 from .distributed import add_parser as add_trials_scaling_parser
+from .gap.blind import add_parser as add_blind_parser
 from .gap.consistency import add_parser as add_check_parser
+from .gap.diagnose import add_parser as add_diagnose_parser
 from .gap.localise_cli import add_parser as add_localise_parser
 from .report.command import add_parser as add_report_parser
 
@@ -151,6 +153,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_check_parser(sub)
     add_localise_parser(sub)
+    add_diagnose_parser(sub)
+    add_blind_parser(sub)
     add_bench_parser(sub)
     add_trials_scaling_parser(sub)
     add_report_parser(sub)

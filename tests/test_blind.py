@@ -1,7 +1,5 @@
 """Blind check: injections drawn as documented, scoring arithmetic, and a small blind run end to end."""
 
-import os
-
 import numpy as np
 import pytest
 
@@ -57,10 +55,8 @@ def test_validation_flight_differs_from_training_flight():
     assert train.metadata["effect"] == validate.metadata["effect"]
 
 
-@pytest.mark.skipif(os.environ.get("JAXHELI_SLOW_TESTS", "") in ("", "0"),
-                    reason="vmapped LM fit: minutes to compile on a loaded 2-core box, where XLA also hung")
 def test_small_blind_run_attributes_delay_and_clears_control():
-    records = run_blind([("input_delay", 0), ("none", 0)], duration=12.0, max_steps=15)
+    records = run_blind([("input_delay", 0), ("none", 0)], duration=12.0, max_steps=15, batch=2)
     delay, control = records
     assert delay["top"] == "input_delay" and delay["correct"]
     assert delay["magnitude_error"] < 0.15

@@ -1,7 +1,5 @@
 """Candidate effects: the augmented plant against numpy/scipy references, synthetic injection, ranking."""
 
-import os
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -135,8 +133,6 @@ def test_params_layout_and_errors():
         piloted_flight(TABLE2, duration=20.0, dt=DT, excitation=SHORT, effect=np.zeros(3))
 
 
-@pytest.mark.skipif(os.environ.get("JAXHELI_SLOW_TESTS", "") in ("", "0"),
-                    reason="vmapped LM fit: minutes to compile on a loaded 2-core box, where XLA also hung")
 def test_rank_effects_finds_an_injected_lon_delay():
     delay = 0.08
     eta = _eta(delay=(1, delay))

@@ -5,14 +5,15 @@ training and a held-out validation flight of the truth plant carrying it (:func:
 with ``effect=``; different excitations, independent noise), and diagnoses them without being told which.
 Base model: the truth parameters with the effect withheld (honest about the effect, cheap, and it isolates
 attribution from parameter-estimation error). Oracle: the truth with the true effect. All trials of a run
-share flight length, so one compiled, candidate-vmapped fit serves every flight (a vmap over flights as
-well compiled but hung in XLA on the 2-core test box, so flights run one after another).
+share flight length, so one compiled program, vmapped over flights and over candidates, fits and scores a
+whole batch of trials at once.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import json
 import time
 from collections.abc import Sequence
@@ -23,14 +24,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._types import Array, Float, Int
 from ..excitation import Excitation
 from ..flight import FlightData
 from ..model import INPUT_NAMES, TABLE2
 from ..synth import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
 from . import effects as fx
 from .augmented import GYROS, layout, no_effect
-from .fit_effect import embed, fit_candidates, score
-from .predictor import make_predictor
+from .fit_effect import Fit, embed, fit_candidates, score
+from .predictor import Predictor, make_predictor
 from .ranking import shrink_entries
 
 KINDS: tuple[str, ...] = fx.ALL + ("none",)
@@ -119,9 +121,12 @@ def run_blind(
     max_steps: int = 20,
     alpha: float = 0.01,
     min_shrink: float = 2.0,
+    batch: int = len(KINDS),
 ) -> list[dict[str, Any]]:
     """Diagnose each ``(kind, seed)`` trial blind; one record per trial.
 
+    ``batch`` flights at a time are fitted by one call (vmapped over flights and candidates; the last batch
+    is padded by repeating its last trial, so every call has the same shapes and compiles once).
     A record holds the injection, the verdict (``top``: best significant effect or ``"none"``), whether it
     is right, the fitted primary parameter of the true kind against its true value, the true kind's shrink
     (%) and the oracle's, and the full ranking.
@@ -129,19 +134,44 @@ def run_blind(
     outputs = DEFAULT_OUTPUTS
     injections = [sample_injection(kind, 7919 * seed + 101 * KINDS.index(kind), outputs, duration)
                   for kind, seed in trials]
-    flights = [blind_flights(inj, 7919 * seed + KINDS.index(kind), duration=duration, dt=dt)
-               for inj, (kind, seed) in zip(injections, trials)]
-    index, start = fx.candidate_arrays(fx.ALL, outputs)
+    index, start = (jnp.asarray(a) for a in fx.candidate_arrays(fx.ALL, outputs))
     theta, base = jnp.asarray(TABLE2), jnp.asarray(no_effect(outputs))
-    index, start = jnp.asarray(index), jnp.asarray(start)
     records = []
-    for inj, (_, seed), (train, validate) in zip(injections, trials, flights):
-        fit = fit_candidates(make_predictor(train, segment=segment), theta, base, index, start, max_steps)
-        etas = jax.vmap(lambda i, z: embed(base, i, z))(index, fit.z)
-        every = jnp.concatenate([base[None, :], etas, jnp.asarray(inj.eta)[None, :]], axis=0)
-        gaps, segs = score(make_predictor(validate, segment=segment), theta, every)
-        records.append(_record(inj, seed, fit, np.asarray(gaps), np.asarray(segs), alpha, min_shrink))
+    for first in range(0, len(trials), batch):
+        chunk = list(range(first, min(first + batch, len(trials))))
+        padded = chunk + [chunk[-1]] * (batch - len(chunk))
+        flights = [blind_flights(injections[i], 7919 * trials[i][1] + KINDS.index(trials[i][0]), duration=duration,
+                                 dt=dt) for i in padded]
+        train = _stack([make_predictor(t, segment=segment) for t, _ in flights])
+        validate = _stack([make_predictor(v, segment=segment) for _, v in flights])
+        truth = jnp.asarray(np.stack([injections[i].eta for i in padded]))
+        fits, gaps, segs = _fit_and_score(train, validate, truth, theta, base, index, start, max_steps)
+        for j, i in enumerate(chunk):
+            fit = jax.tree.map(lambda a: a[j], fits)
+            records.append(_record(injections[i], trials[i][1], fit, np.asarray(gaps[j]), np.asarray(segs[j]),
+                                   alpha, min_shrink))
     return records
+
+
+def _stack(predictors: list[Predictor]) -> Predictor:
+    return jax.tree.map(lambda *leaves: jnp.stack(leaves), *predictors)
+
+
+@functools.partial(jax.jit, static_argnames=("max_steps",))
+def _fit_and_score(
+    train: Predictor, validate: Predictor, truth: Float[Array, "F E"], theta: Float[Array, "40"],
+    base: Float[Array, "E"], index: Int[Array, "C K"], start: Float[Array, "C K"], max_steps: int,
+) -> tuple[Fit, Float[Array, "F C+2 k"], Float[Array, "F C+2 S"]]:
+    """Every flight's candidate fits on its training flight, then the validation gaps of the base model,
+    each fitted candidate and the truth (oracle), all vmapped over flights ``F``."""
+
+    def one(train, validate, eta_true):
+        fit = fit_candidates(train, theta, base, index, start, max_steps)
+        etas = jax.vmap(lambda i, z: embed(base, i, z))(index, fit.z)
+        gaps, segs = score(validate, theta, jnp.concatenate([base[None, :], etas, eta_true[None, :]], axis=0))
+        return fit, gaps, segs
+
+    return jax.vmap(one)(train, validate, truth)
 
 
 def _record(inj: Injection, seed: int, fit, gaps, segs, alpha, min_shrink) -> dict[str, Any]:

@@ -90,16 +90,19 @@ def candidate_arrays(
 
 def describe(effect: str, outputs: tuple[str, ...], value: np.ndarray, stderr: np.ndarray) -> tuple[dict, list, str]:
     """``(params, where, sentence)`` of a fitted effect: named values with standard errors and units, the
-    axes/channels whose parameters differ from no-effect by more than two standard errors (else the
-    strongest one), and a sentence such as ``"lat input delay 42 +- 6 ms"``."""
+    axes/channels whose parameters differ from no-effect by more than two standard errors and by at least a
+    quarter of the largest change among parameters of the same unit (else the strongest one), and a
+    sentence such as ``"lat input delay 42 +- 6 ms"``."""
     ps = params(effect, outputs)
     value = np.asarray(value, dtype=np.float64)[: len(ps)]
     stderr = np.asarray(stderr, dtype=np.float64)[: len(ps)]
     shown = np.where([p.positive for p in ps], np.abs(value), value)
     neutral = no_effect(outputs)[[p.slot for p in ps]]
-    z = np.abs(shown - neutral) / np.where(stderr > 0, stderr, np.inf)
+    size = np.abs(shown - neutral)
+    z = size / np.where(stderr > 0, stderr, np.inf)
     z = np.where(np.isfinite(z), z, 0.0)
-    strong = [i for i in range(len(ps)) if z[i] > 2.0] or [int(np.argmax(z))]
+    largest = {u: max(size[i] for i in range(len(ps)) if ps[i].unit == u) for u in {p.unit for p in ps}}
+    strong = [i for i in range(len(ps)) if z[i] > 2.0 and size[i] >= 0.25 * largest[ps[i].unit]] or [int(np.argmax(z))]
     where = list(dict.fromkeys(ps[i].where for i in strong))
     named = {p.name: {"value": float(v), "stderr": float(s), "unit": p.unit, "where": p.where}
              for p, v, s in zip(ps, shown, stderr)}

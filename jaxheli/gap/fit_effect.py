@@ -4,8 +4,9 @@ Every candidate frees ``K`` entries of ``eta`` (``index[C, K]``, padded with a d
 from the base model (``eta`` at no effect, the base ``theta`` held fixed) at the effect's start values.
 The residuals are the predictor's normalised output errors on the training flight (their sum of squares
 is ``N`` times the summed per-channel gap), so the fit minimises the training gap directly. Standard
-errors are Cramer-Rao style: ``s^2 (J^T J)^+`` with ``J`` the Jacobian at the optimum and
-``s^2 = RSS / (N_res - K)`` (white-residual assumption, so optimistic for coloured residuals).
+errors are Cramer-Rao style, ``s^2 (J^T J)^+`` with ``J`` the Jacobian at the optimum and
+``s^2 = RSS / (N_res - K)``, inflated for coloured residuals by the AR(1) factor ``(1 + r1) / (1 - r1)``
+(``r1``: the residuals' lag-1 autocorrelation, averaged over channels), i.e. counting effective samples.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ def fit_candidates(
     max_steps: int = 40,
 ) -> Fit:
     """Fit every candidate on ``pred``'s flight (vmapped LM; ``max_steps`` is static)."""
-    solver = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-8, linear_solver=lx.SVD())
+    solver = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-8, linear_solver=lx.QR())
 
     def one(idx, z0):
         def residuals(z, _):
@@ -61,11 +62,18 @@ def fit_candidates(
         rss = jnp.sum(res**2)
         active = jnp.any(J != 0, axis=0)
         dof = res.shape[0] - jnp.sum(active)
-        cov = rss / dof * jnp.linalg.pinv(J.T @ J)
+        cov = rss / dof * _colour_factor(res.reshape(pred.measured.shape)) * jnp.linalg.pinv(J.T @ J)
         stderr = jnp.where(active, jnp.sqrt(jnp.abs(jnp.diag(cov))), 0.0)
         return z, stderr, rss, sol.stats["num_steps"], sol.result == optx.RESULTS.successful
 
     return Fit(*jax.vmap(one)(index, start))
+
+
+def _colour_factor(res: Float[Array, "N k"]) -> Float[Array, ""]:
+    """``(1 + r1) / (1 - r1)`` of the lag-1 autocorrelation ``r1`` (mean over channels, clipped to [0, 0.99])."""
+    r1 = jnp.sum(res[1:] * res[:-1], axis=0) / jnp.maximum(jnp.sum(res**2, axis=0), 1e-300)
+    r1 = jnp.clip(jnp.mean(r1), 0.0, 0.99)
+    return (1.0 + r1) / (1.0 - r1)
 
 
 @eqx.filter_jit

@@ -32,6 +32,7 @@ class Predictor(eqx.Module):
     scale: Float[Array, "k"]
     dt: float = eqx.field(static=True)
     segment_samples: int = eqx.field(static=True)
+    window_samples: int = eqx.field(static=True)
     outputs: tuple[str, ...] = eqx.field(static=True)
     g: float = eqx.field(static=True)
     max_delay: float = eqx.field(static=True)
@@ -70,9 +71,10 @@ class Predictor(eqx.Module):
         return jnp.where(jnp.isfinite(err), err, 1e6).reshape(-1)
 
     def segment_energy(self, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch S"]:
-        """Normalised residual energy of each restart segment, summed over channels (for significance tests)."""
-        err = ((y - self.measured) / self.scale) ** 2
-        seg = np.arange(self.time.shape[0]) // self.segment_samples
+        """Normalised residual energy of each significance window (``window_samples`` long), summed over
+        channels: the paired samples of the ranking's significance test."""
+        err = ((y - jnp.broadcast_to(self.measured, y.shape)) / jnp.broadcast_to(self.scale, y.shape)) ** 2
+        seg = np.arange(self.time.shape[0]) // self.window_samples
         onehot = jnp.asarray(np.eye(int(seg[-1]) + 1)[seg])
         return jnp.einsum("...nk,ns->...s", err, onehot)
 
@@ -88,15 +90,19 @@ def noise_variance(outputs: Float[np.ndarray, "N k"]) -> Float[np.ndarray, "k"]:
 
 
 def make_predictor(
-    flight: FlightData, *, segment: float = 2.0, g: float = G_SI, max_delay: float = 0.3,
+    flight: FlightData, *, segment: float = 2.0, g: float = G_SI, max_delay: float = 0.3, window: float = 0.5,
 ) -> Predictor:
-    """Predictor of ``flight`` (all its output channels) restarting every ``segment`` s; delays up to ``max_delay`` s."""
+    """Predictor of ``flight`` (all its output channels) restarting every ``segment`` s; delays up to
+    ``max_delay`` s; residual energy in windows of ``window`` s (:meth:`Predictor.segment_energy`)."""
     bad = [c for c in flight.output_names if c in ("a", "b")]
     if bad:
         raise ValueError(f"{flight.source}: output channels {bad} are stick multiples, not states; drop them")
     seg = int(round(segment / flight.dt))
     if seg < 2 or seg >= flight.n_samples:
         raise ValueError(f"{flight.source}: segment {segment} s must span 2 samples to the record length")
+    win = int(round(window / flight.dt))
+    if win < 1 or win >= flight.n_samples:
+        raise ValueError(f"{flight.source}: significance window {window} s must span 1 sample to the record length")
     std = flight.outputs.std(axis=0)
     flat = [c for c, s in zip(flight.output_names, std) if not s > 0]
     if flat:
@@ -109,6 +115,7 @@ def make_predictor(
         scale=jnp.asarray(std),
         dt=flight.dt,
         segment_samples=seg,
+        window_samples=win,
         outputs=tuple(flight.output_names),
         g=float(g),
         max_delay=float(max_delay),

@@ -1,0 +1,311 @@
+"""How far the gap shrinks: the whole diagnosis of a model on a training and a validation flight, and the
+``jaxheli diagnose`` command (``add_parser`` is called from :mod:`jaxheli.cli`).
+
+Composes the pieces of :mod:`jaxheli.gap`: the data-consistency findings of both flights
+(:func:`~jaxheli.gap.consistency.check`), where the base model misses the validation flight
+(:func:`~jaxheli.gap.localise_cli.localise_model`), and the candidate effects fitted on the training flight
+and ranked by their shrink of the validation gap (:func:`~jaxheli.gap.ranking.diagnose_effects`).
+
+Every gap here is the segment-wise predictor's (:mod:`jaxheli.gap.predictor`: restarts from the measured
+states every ``segment`` s, zero-order hold), so the localised residual, ``gap_before`` and the ranking's
+base gap are one and the same number.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._types import Array, Float
+from ..cost import nmse
+from ..evaluate import resolve_params
+from ..flight import FlightData
+from ..model import G_SI, MEASURABLE
+from . import effects as fx
+from .augmented import no_effect
+from .consistency import check
+from .localise_cli import localise_model
+from .predictor import Predictor, make_predictor
+from .ranking import diagnose_effects
+
+_NOT_STATES = ("a", "b")
+"""Flapping columns of the real logs: stick multiples, never diagnosed."""
+
+
+def shared_outputs(train: FlightData, validate: FlightData) -> tuple[str, ...]:
+    """Channels both flights carry that the model measures (``a``, ``b`` excluded), in ``train``'s order."""
+    names = tuple(c for c in train.output_names
+                  if c in validate.output_names and c in MEASURABLE and c not in _NOT_STATES)
+    if not names:
+        raise ValueError(f"{train.source} {train.output_names} and {validate.source} {validate.output_names} "
+                         f"share no model output channel")
+    return names
+
+
+def effect_eta(effect: str, params: dict[str, dict[str, float]], outputs: tuple[str, ...]) -> Float[np.ndarray, "E"]:
+    """``eta`` of a ranking entry: its fitted ``params`` (as :func:`~jaxheli.gap.effects.describe` names them)
+    on the no-effect vector; ``effect`` may be a combination ``"a+b"``."""
+    eta = no_effect(outputs)
+    for part in effect.split("+"):
+        for p in fx.params(part, outputs):
+            if p.name not in params:
+                raise ValueError(f"effect {effect!r}: fitted parameter {p.name!r} missing from its entry")
+            eta[p.slot] = params[p.name]["value"]
+    return eta
+
+
+@eqx.filter_jit
+def _predict(pred: Predictor, theta: Float[Array, "40"], etas: Float[Array, "C E"]) -> Float[Array, "C N k"]:
+    return jax.vmap(lambda eta: pred(theta, eta))(etas)
+
+
+def predictions(
+    theta: Float[np.ndarray, "40"], flight: FlightData, entries: Sequence[dict[str, Any]], *,
+    segment: float = 2.0, g: float = G_SI,
+) -> Float[np.ndarray, "C+1 N k"]:
+    """Predicted outputs of the base model (first) and of the base plus each ranking entry's fitted effect
+    on ``flight`` (all its channels), by the same segment-wise predictor the ranking scores with."""
+    outputs = tuple(flight.output_names)
+    etas = [no_effect(outputs)] + [effect_eta(e["effect"], e["params"], outputs) for e in entries]
+    pred = make_predictor(flight, segment=segment, g=g)
+    return np.asarray(_predict(pred, jnp.asarray(theta), jnp.asarray(np.stack(etas))))
+
+
+def diagnose(
+    model,
+    train: FlightData,
+    validate: FlightData,
+    *,
+    outputs: Sequence[str] | None = None,
+    effects: Sequence[str] = fx.ALL,
+    segment: float = 2.0,
+    top: int = 3,
+    g: float = G_SI,
+    localise_train: bool = True,
+    **options,
+) -> dict[str, Any]:
+    """JSON-ready diagnosis of ``model`` (anything :func:`jaxheli.resolve_params` takes).
+
+    Effects are fitted on ``train`` with the base model fixed and scored on ``validate``; ``segment`` (s) is
+    the restart interval of every prediction, ``options`` (``max_steps``, ``alpha``, ``min_shrink``) go to
+    :func:`~jaxheli.gap.ranking.diagnose_effects`. ``outputs`` default to :func:`shared_outputs`.
+
+    Returns ``model``, ``flights``, ``outputs``, ``consistency`` (findings of both flights, each with a
+    ``flight`` key), ``localisation`` (validation flight; the training flight's under ``train``),
+    ``ranking`` (best first), ``combination``, ``verdict``, ``gap_before`` (base model, per channel and
+    ``total`` = channel mean) and ``gap_after`` (``best`` entry and ``combination``, same layout, or ``None``).
+    """
+    theta = resolve_params(model)
+    names = tuple(outputs) if outputs is not None else shared_outputs(train, validate)
+    for role, flight in (("train", train), ("validate", validate)):
+        missing = [c for c in names if c not in flight.output_names]
+        if missing:
+            raise ValueError(f"{flight.source} ({role} flight): no output channel(s) {missing}; it has "
+                             f"{flight.output_names}")
+    bad = [c for c in names if c in _NOT_STATES or c not in MEASURABLE]
+    if bad:
+        raise ValueError(f"diagnose: output channel(s) {bad} are not model states the diagnosis can use")
+    train, validate = train.select(names), validate.select(names)
+    consistency = [{**f.to_json(), "flight": role} for role, flight in (("train", train), ("validate", validate))
+                   for f in check(flight)]
+    sim = {"x0": "measured", "segment": segment, "g": g, "hold": "zoh"}
+    localisation, _ = localise_model(theta, validate, outputs=names, **sim)
+    if localise_train:
+        localisation["train"] = localise_model(theta, train, outputs=names, **sim)[0]
+    ranked = diagnose_effects(theta, train, validate, list(effects), top=top, segment=segment, g=g, **options)
+    shown = [ranked["ranking"][0]] + ([ranked["combination"]] if ranked["combination"] else [])
+    gaps = np.asarray(nmse(predictions(theta, validate, shown, segment=segment, g=g), validate.outputs))
+    after = [{"effect": e["effect"], **_gap_block(gap, names)} for e, gap in zip(shown, gaps[1:])]
+    return _json_ready({
+        "model": model if isinstance(model, (str, Path)) else "given parameters",
+        "flights": {role: _flight_block(f) for role, f in (("train", train), ("validate", validate))},
+        "outputs": list(names),
+        "segment_s": segment,
+        "consistency": consistency,
+        "localisation": localisation,
+        **ranked,
+        "gap_before": _gap_block(gaps[0], names),
+        "gap_after": {"best": after[0], "combination": after[1] if len(after) > 1 else None},
+    })
+
+
+def _gap_block(gap: np.ndarray, names: tuple[str, ...]) -> dict[str, Any]:
+    return {"channel": dict(zip(names, map(float, gap))), "total": float(np.mean(gap))}
+
+
+def _flight_block(flight: FlightData) -> dict[str, Any]:
+    return {"source": flight.source, "samples": flight.n_samples, "dt": flight.dt,
+            "preprocessing": flight.metadata.get("preprocessing", [])}
+
+
+def _json_ready(value: Any) -> Any:
+    """Nested dicts/lists/tuples of plain Python values; non-finite floats become ``None``."""
+    if isinstance(value, dict):
+        return {str(k): _json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_ready(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _json_ready(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if np.isfinite(value) else None
+    return value if value is None or isinstance(value, str) else str(value)
+
+
+def write_diagnosis(
+    diagnosis: dict[str, Any], theta: Float[np.ndarray, "40"], validate: FlightData, out: str | Path,
+) -> list[Path]:
+    """Write ``diagnosis.json``, ``consistency.json`` and the PNGs (residual bands, lag correlation, frequency
+    response, before/after time histories on ``validate``) into ``out``."""
+    from .localise_cli import frequency_comparison
+    from .plots import plot_frequency_response, plot_lag_correlation, plot_residual_bands
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    names = tuple(diagnosis["outputs"])
+    flight = validate.select(names)
+    local = diagnosis["localisation"]
+    (out / "diagnosis.json").write_text(json.dumps(diagnosis, indent=1))
+    (out / "consistency.json").write_text(json.dumps(diagnosis["consistency"], indent=1))
+    shown = [e for e in (diagnosis["ranking"][0], diagnosis["combination"]) if e]
+    predicted = predictions(theta, flight, shown, segment=diagnosis["segment_s"], g=local["simulation"]["g"])
+    estimate, model = frequency_comparison(theta, flight, names, local["simulation"]["g"])
+    return [
+        out / "diagnosis.json",
+        out / "consistency.json",
+        plot_residual_bands(local, out / "residual_bands.png", title=flight.source),
+        plot_lag_correlation(local, out / "lag_correlation.png"),
+        plot_frequency_response(estimate, model, names, out / "frequency_response.png", title=flight.source),
+        plot_before_after(flight, predicted, ["base model"] + [f"+ {e['effect']}" for e in shown],
+                          out / "before_after.png"),
+    ]
+
+
+def plot_before_after(
+    flight: FlightData, predicted: Float[np.ndarray, "C N k"], labels: Sequence[str], path: str | Path,
+) -> Path:
+    """Time histories per channel: the flight's measurement and each prediction ``predicted[c]`` (``labels[c]``)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..plots import _save
+
+    predicted = np.asarray(predicted)
+    if predicted.shape[1:] != flight.outputs.shape or predicted.shape[0] != len(labels):
+        raise ValueError(f"plot_before_after: predictions {predicted.shape} must be [{len(labels)}, "
+                         f"{', '.join(map(str, flight.outputs.shape))}] for {flight.source}")
+    k = len(flight.output_names)
+    fig, axes = plt.subplots(k, 1, figsize=(10, 1.6 * k + 0.8), sharex=True, squeeze=False)
+    t = flight.time - flight.time[0]
+    units = flight.units
+    for c, (ax, name) in enumerate(zip(axes[:, 0], flight.output_names)):
+        ax.plot(t, flight.outputs[:, c], color="black", lw=1.0, label="measured")
+        for i, label in enumerate(labels):
+            ax.plot(t, predicted[i, :, c], lw=0.9, color=f"C{i}", label=label)
+        ax.set_ylabel(f"{name} [{units.get(name, '-')}]", fontsize=8)
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=7, ncol=len(labels) + 1, loc="upper right")
+    axes[-1, 0].set_xlabel("time [s]")
+    fig.suptitle(f"{flight.source}: before and after the effect (validation flight)", fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Add ``jaxheli diagnose --model M --train FILE --validate FILE --out DIR`` to the CLI's sub-parsers."""
+    p = subparsers.add_parser("diagnose", help="which unmodelled effect explains a model's gap, and how far it shrinks")
+    p.add_argument("--model", required=True, help="result.json / parameters JSON, or a named set: table2")
+    p.add_argument("--train", required=True, help="flight the effects are fitted on (file or 'default')")
+    p.add_argument("--validate", required=True, help="held-out flight the shrink is measured on")
+    p.add_argument("--out", default="jaxheli-diagnose", help="output folder (diagnosis.json, consistency.json, PNGs)")
+    p.add_argument("--outputs", default=None, help="comma-separated channels (default: those both flights share)")
+    p.add_argument("--effects", default=",".join(fx.ALL),
+                   help=f"comma-separated candidates (default: {','.join(fx.ALL)})")
+    p.add_argument("--segment", type=float, default=2.0, help="restart interval of the predictions, s (default 2)")
+    p.add_argument("--top", type=int, default=3, help="significant effects fitted jointly (default 3)")
+    p.add_argument("--g", type=float, default=G_SI, help="gravity, m/s^2 (default 9.81)")
+    p.add_argument("--max-steps", type=int, default=40, help="Levenberg-Marquardt steps per candidate (default 40)")
+    p.add_argument("--alpha", type=float, default=0.01, help="significance level of the shrink test (default 0.01)")
+    p.add_argument("--min-shrink", type=float, default=2.0, help="smallest significant shrink, %% (default 2)")
+    p.add_argument("--correct", action="store_true",
+                   help="apply each flight's significant consistency findings (jaxheli check) before diagnosing")
+    p.add_argument("--train-trim", type=int, default=0,
+                   help="drop this many samples at each end of the training flight")
+    p.add_argument("--train-lowpass", type=float, default=None, help="zero-phase low-pass of the training flight, Hz")
+    p.add_argument("--train-dt", type=float, default=None, help="resample the training flight to this step, s")
+    p.set_defaults(func=_cmd_diagnose)
+    return p
+
+
+def prepare(
+    flight: FlightData, *, correct_data: bool = False, trim_samples: int = 0, lowpass_hz: float | None = None,
+    dt: float | None = None,
+) -> FlightData:
+    """A flight ready for diagnosis: ends trimmed, significant consistency findings applied, low-passed,
+    resampled (each step optional, in that order, logged in ``metadata["preprocessing"]``)."""
+    from ..preprocess import lowpass, resample, trim
+    from .consistency import correct
+
+    if trim_samples:
+        flight = trim(flight, drop_samples=trim_samples)
+    if correct_data:
+        flight = correct(flight, check(flight))
+    if lowpass_hz:
+        flight = lowpass(flight, lowpass_hz)
+    return resample(flight, dt) if dt else flight
+
+
+def _cmd_diagnose(args: argparse.Namespace) -> int:
+    from ..cli import _load_flight, _outputs
+
+    chosen = tuple(e.strip() for e in args.effects.split(",") if e.strip())
+    unknown = [e for e in chosen if e not in fx.ALL]
+    if unknown or not chosen:
+        raise SystemExit(f"jaxheli diagnose: --effects: unknown effect(s) {unknown}; candidates are {fx.ALL}")
+    theta = resolve_params(args.model)
+    train = prepare(_load_flight(args.train), correct_data=args.correct, trim_samples=args.train_trim,
+                    lowpass_hz=args.train_lowpass, dt=args.train_dt)
+    validate = prepare(_load_flight(args.validate), correct_data=args.correct)
+    diagnosis = diagnose(
+        args.model, train, validate, outputs=_outputs(args.outputs), effects=chosen, segment=args.segment,
+        top=args.top, g=args.g, max_steps=args.max_steps, alpha=args.alpha, min_shrink=args.min_shrink,
+    )
+    print(f"diagnosis of {args.model}: trained on {train.source}, validated on {validate.source} "
+          f"(segment {args.segment:g} s; channels {','.join(diagnosis['outputs'])})")
+    for line in ranking_table(diagnosis):
+        print(line)
+    print(f"verdict: {diagnosis['verdict']}")
+    for path in write_diagnosis(diagnosis, theta, validate, args.out):
+        print(f"wrote {path}")
+    return 0
+
+
+def ranking_table(diagnosis: dict[str, Any]) -> list[str]:
+    """The ranked effects as text lines: shrink on the validation flight (total and per channel), significance."""
+    names = diagnosis["outputs"]
+    head = f"  {'effect':<22}{'shrink %':>9}  {'sig':<4}" + "".join(f"{n:>8}" for n in names) + "  fitted"
+    rows = [e for e in (*diagnosis["ranking"], diagnosis["combination"]) if e]
+    lines = [head, f"  {'(base gap nmse)':<22}{diagnosis['gap_before']['total']:>9.3g}  {'':<4}"
+             + "".join(f"{diagnosis['gap_before']['channel'][n]:>8.3g}" for n in names)]
+    for e in rows:
+        by = e["shrink_by_channel"]
+        lines.append(f"  {e['effect']:<22}{_num(e['shrink_pct'], '.1f'):>9}  {'*' if e['significant'] else '':<4}"
+                     + "".join(f"{_num(by[n], '.1f'):>8}" for n in names) + f"  {e.get('summary', '')}")
+    return lines
+
+
+def _num(value: float | None, fmt: str) -> str:
+    return "-" if value is None else format(value, fmt)

@@ -1,0 +1,130 @@
+"""The whole diagnosis: injected delay found and reported, clean flights cleared, CLI writes every file."""
+
+import argparse
+import json
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxheli import make_simulator
+from jaxheli.cost import nmse
+from jaxheli.excitation import Excitation
+from jaxheli.gap import augmented, effects
+from jaxheli.gap.diagnose import add_parser, diagnose, effect_eta, predictions, shared_outputs
+from jaxheli.gap.predictor import make_predictor
+from jaxheli.io import save_npz
+from jaxheli.model import TABLE2
+from jaxheli.synth import DEFAULT_OUTPUTS, piloted_flight
+
+OUT = DEFAULT_OUTPUTS
+DT = 0.05
+OPTIONS = {"segment": 2.0, "max_steps": 15, "top": 1, "localise_train": False}
+"""Flight shapes, candidates and steps of tests/test_effects.py and tests/test_blind.py, so the vmapped fit
+compiles once per session; ``top=1`` skips the joint fit (a second compile)."""
+DELAY = 0.08
+
+
+def _flight(delay, seed, amplitude):
+    eta = augmented.no_effect(OUT)
+    eta[augmented.layout(OUT)["delay"].start + 1] = delay
+    excitation = Excitation("mixed", amplitude=(amplitude,) * 4, unit=0.3, band=(0.2, 4.0))  # every segment excited
+    return piloted_flight(TABLE2, duration=20.0, dt=DT, excitation=excitation, seed=seed, noise=1.0,
+                          effect=eta if delay else None)
+
+
+def _cli(argv):
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers())
+    args = parser.parse_args(["diagnose", *argv])
+    return args.func(args)
+
+
+@pytest.fixture(scope="module")
+def delayed(tmp_path_factory):
+    """The CLI run on a flight pair with a 80 ms lon input delay: (train, validate, diagnosis.json, folder)."""
+    train, validate = _flight(DELAY, 3, 0.2), _flight(DELAY, 4, 0.25)
+    folder = tmp_path_factory.mktemp("diagnose")
+    save_npz(train, folder / "train.npz")
+    save_npz(validate, folder / "validate.npz")
+    assert _cli(["--model", "table2", "--train", str(folder / "train.npz"), "--validate",
+                 str(folder / "validate.npz"), "--out", str(folder / "out"), "--max-steps", "15", "--top", "1"]) == 0
+    return train, validate, json.loads((folder / "out" / "diagnosis.json").read_text()), folder / "out"
+
+
+def test_injected_delay_is_diagnosed_and_reported(delayed):
+    train, validate, d, _ = delayed
+    for key in ("model", "flights", "consistency", "localisation", "ranking", "combination", "verdict",
+                "gap_before", "gap_after"):
+        assert key in d
+    for key in ("channel", "band", "window", "lag"):
+        assert key in d["localisation"]
+    assert {f["flight"] for f in d["consistency"]} == {"train", "validate"}
+    for f in d["consistency"]:
+        assert {"kind", "channels", "estimate", "uncertainty", "significant", "message"} <= set(f)
+    assert sorted(e["effect"] for e in d["ranking"]) == sorted(effects.ALL)
+    for e in d["ranking"]:
+        assert {"effect", "where", "params", "shrink_pct", "shrink_by_channel", "significant"} <= set(e)
+    shrinks = [e["shrink_pct"] for e in d["ranking"]]
+    assert shrinks == sorted(shrinks, reverse=True)
+    top = d["ranking"][0]
+    assert top["effect"] == "input_delay" and top["significant"] and top["where"] == ["lon"]
+    est = top["params"]["delay_lon"]
+    assert abs(est["value"] - DELAY) < max(4 * est["stderr"], 0.005)
+    assert d["verdict"].startswith("input_delay")
+    assert d["flights"]["validate"]["samples"] == validate.n_samples
+    assert d["outputs"] == list(OUT)
+
+
+def test_gaps_recomputed_independently(delayed):
+    train, validate, d, _ = delayed
+    top = d["ranking"][0]
+    sim = make_simulator(validate, segment=2.0, x0="measured", method="scan")
+    base = np.asarray(nmse(np.asarray(sim(TABLE2)), validate.outputs))  # the base model, another simulator
+    np.testing.assert_allclose([d["gap_before"]["channel"][c] for c in OUT], base, rtol=1e-6)
+    np.testing.assert_allclose([d["localisation"]["channel"][c]["nmse"] for c in OUT], base, rtol=1e-6)
+    np.testing.assert_allclose(d["gap_before"]["total"], top["gap_base"], rtol=1e-9)
+    np.testing.assert_allclose(d["gap_after"]["best"]["total"], top["gap"], rtol=1e-6)
+    assert d["gap_after"]["best"]["effect"] == top["effect"]
+    for c in OUT:
+        before, after = d["gap_before"]["channel"][c], d["gap_after"]["best"]["channel"][c]
+        np.testing.assert_allclose(100 * (before - after) / before, top["shrink_by_channel"][c], rtol=1e-6, atol=1e-6)
+    y = predictions(TABLE2, validate, [top], segment=2.0)
+    np.testing.assert_allclose(y[0], np.asarray(sim(TABLE2)), atol=1e-8)
+    truth = augmented.no_effect(OUT)
+    truth[augmented.layout(OUT)["delay"].start + 1] = DELAY
+    oracle = make_predictor(validate, segment=2.0)(jnp.asarray(TABLE2), jnp.asarray(truth))
+    worst = np.max(np.abs(y[1] - np.asarray(oracle)), axis=0) / np.abs(validate.outputs).max(axis=0)
+    assert np.all(worst < 0.05), dict(zip(OUT, worst))
+    assert d["gap_after"]["best"]["total"] < 1.1 * float(np.mean(nmse(oracle, validate.outputs)))
+    eta = effect_eta(top["effect"], top["params"], OUT)
+    assert np.count_nonzero(eta != augmented.no_effect(OUT)) == 4  # the four delays, nothing else
+
+
+def test_clean_flight_gives_no_significant_effect():
+    d = diagnose(TABLE2, _flight(0.0, 3, 0.2), _flight(0.0, 4, 0.25), **OPTIONS)
+    assert json.loads(json.dumps(d, allow_nan=False)) == d  # plain, strict JSON
+    assert d["verdict"] == "no significant effect"
+    assert not any(e["significant"] for e in d["ranking"])
+    assert d["combination"] is None and d["gap_after"]["combination"] is None
+    assert abs(d["ranking"][0]["shrink_pct"]) < 10
+
+
+def test_shared_outputs_and_bad_channels():
+    a, b = _flight(0.0, 3, 0.2), _flight(0.0, 4, 0.25)
+    assert shared_outputs(a, b.select(("q", "u", "theta"))) == ("u", "q", "theta")
+    with pytest.raises(ValueError, match="share no model output"):
+        shared_outputs(a.select(("u",)), b.select(("v",)))
+    with pytest.raises(ValueError, match=r"validate flight\): no output channel\(s\) \['r'\]"):
+        diagnose(TABLE2, a, b.select(("u", "v")), outputs=("u", "r"), **OPTIONS)
+
+
+def test_cli_writes_every_file(delayed, tmp_path):
+    _, _, d, out = delayed
+    for name in ("diagnosis.json", "consistency.json", "residual_bands.png", "lag_correlation.png",
+                 "before_after.png", "frequency_response.png"):
+        assert (out / name).stat().st_size > 0
+    assert json.loads((out / "consistency.json").read_text()) == d["consistency"]
+    assert "train" in d["localisation"]
+    with pytest.raises(SystemExit, match="unknown effect"):
+        _cli(["--model", "table2", "--train", "x.npz", "--validate", "y.npz", "--effects", "input_delay,gremlins"])
