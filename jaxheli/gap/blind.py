@@ -16,13 +16,14 @@ import dataclasses
 import functools
 import json
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from tqdm.auto import tqdm
 
 from .._types import Array, Float, Int
 from ..excitation import Excitation
@@ -119,14 +120,15 @@ def run_blind(
     dt: float = 0.05,
     segment: float = 2.0,
     max_steps: int = 20,
-    alpha: float = 0.01,
-    min_shrink: float = 2.0,
+    min_shrink: float = 3.0,
     batch: int = len(KINDS),
+    on_batch: Callable[[list[dict[str, Any]]], None] | None = None,
 ) -> list[dict[str, Any]]:
     """Diagnose each ``(kind, seed)`` trial blind; one record per trial.
 
     ``batch`` flights at a time are fitted by one call (vmapped over flights and candidates; the last batch
-    is padded by repeating its last trial, so every call has the same shapes and compiles once).
+    is padded by repeating its last trial, so every call has the same shapes and compiles once); a progress
+    bar advances per batch and ``on_batch(records_so_far)`` runs after each, e.g. to save partial results.
     A record holds the injection, the verdict (``top``: best significant effect or ``"none"``), whether it
     is right, the fitted primary parameter of the true kind against its true value, the true kind's shrink
     (%) and the oracle's, and the full ranking.
@@ -137,7 +139,7 @@ def run_blind(
     index, start = (jnp.asarray(a) for a in fx.candidate_arrays(fx.ALL, outputs))
     theta, base = jnp.asarray(TABLE2), jnp.asarray(no_effect(outputs))
     records = []
-    for first in range(0, len(trials), batch):
+    for first in tqdm(range(0, len(trials), batch), desc="blind batches", unit="batch"):
         chunk = list(range(first, min(first + batch, len(trials))))
         padded = chunk + [chunk[-1]] * (batch - len(chunk))
         flights = [blind_flights(injections[i], 7919 * trials[i][1] + KINDS.index(trials[i][0]), duration=duration,
@@ -149,7 +151,9 @@ def run_blind(
         for j, i in enumerate(chunk):
             fit = jax.tree.map(lambda a: a[j], fits)
             records.append(_record(injections[i], trials[i][1], fit, np.asarray(gaps[j]), np.asarray(segs[j]),
-                                   alpha, min_shrink))
+                                   min_shrink))
+        if on_batch is not None:
+            on_batch(records)
     return records
 
 
@@ -174,10 +178,10 @@ def _fit_and_score(
     return jax.vmap(one)(train, validate, truth)
 
 
-def _record(inj: Injection, seed: int, fit, gaps, segs, alpha, min_shrink) -> dict[str, Any]:
+def _record(inj: Injection, seed: int, fit, gaps, segs, min_shrink) -> dict[str, Any]:
     n = len(fx.ALL)
     ranking = shrink_entries(list(fx.ALL), DEFAULT_OUTPUTS, fit, gaps[0], gaps[1:n + 1], segs[0],
-                             segs[1:n + 1], alpha, min_shrink)
+                             segs[1:n + 1], min_shrink)
     significant = [e["effect"] for e in ranking if e["significant"]]
     top = significant[0] if significant else "none"
     record = {"kind": inj.kind, "seed": int(seed), "top": top, "correct": top == inj.kind,
@@ -227,15 +231,22 @@ def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, **options) 
     if bad:
         raise ValueError(f"blind benchmark: unknown kinds {bad}; kinds are {KINDS}")
     t0 = time.perf_counter()
-    records = run_blind([(k, s) for k in kinds for s in range(seeds)], **options)
-    summary = summarise(records)
-    summary["runtime_s"] = time.perf_counter() - t0
-    summary["settings"] = {"kinds": list(kinds), "seeds": seeds, **options,
-                           "base_model": "truth parameters (Table 2) with the effect withheld"}
+    settings = {"kinds": list(kinds), "seeds": seeds, **options,
+                "base_model": "truth parameters (Table 2) with the effect withheld"}
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "blind.json").write_text(json.dumps({"summary": summary, "records": records}, indent=2))
-    (out / "blind.md").write_text(markdown(summary) + f"\n\nRuntime {summary['runtime_s']:.0f} s.\n")
+
+    def save(records: list[dict[str, Any]]) -> dict[str, Any]:
+        summary = summarise(records)
+        summary["runtime_s"] = time.perf_counter() - t0
+        summary["settings"] = settings
+        summary["complete"] = len(records) == len(kinds) * seeds
+        (out / "blind.json").write_text(json.dumps({"summary": summary, "records": records}, indent=2))
+        (out / "blind.md").write_text(markdown(summary) + f"\n\nRuntime {summary['runtime_s']:.0f} s.\n")
+        return summary
+
+    records = run_blind([(k, s) for s in range(seeds) for k in kinds], on_batch=save, **options)
+    summary = save(records)
     return summary
 
 

@@ -95,7 +95,7 @@ def diagnose(
     """JSON-ready diagnosis of ``model`` (anything :func:`jaxheli.resolve_params` takes).
 
     Effects are fitted on ``train`` with the base model fixed and scored on ``validate``; ``segment`` (s) is
-    the restart interval of every prediction, ``options`` (``max_steps``, ``alpha``, ``min_shrink``) go to
+    the restart interval of every prediction, ``options`` (``max_steps``, ``min_shrink``) go to
     :func:`~jaxheli.gap.ranking.diagnose_effects`. ``outputs`` default to :func:`shared_outputs`.
 
     Returns ``model``, ``flights``, ``outputs``, ``consistency`` (findings of both flights, each with a
@@ -238,8 +238,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument("--top", type=int, default=3, help="significant effects fitted jointly (default 3)")
     p.add_argument("--g", type=float, default=G_SI, help="gravity, m/s^2 (default 9.81)")
     p.add_argument("--max-steps", type=int, default=40, help="Levenberg-Marquardt steps per candidate (default 40)")
-    p.add_argument("--alpha", type=float, default=0.01, help="significance level of the shrink test (default 0.01)")
-    p.add_argument("--min-shrink", type=float, default=2.0, help="smallest significant shrink, %% (default 2)")
+    p.add_argument("--min-shrink", type=float, default=3.0,
+                   help="smallest significant held-out shrink, %% (default 3: the blind check's noise floor)")
     p.add_argument("--correct", action="store_true",
                    help="apply each flight's significant consistency findings (jaxheli check) before diagnosing")
     p.add_argument("--train-trim", type=int, default=0,
@@ -281,7 +281,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     validate = prepare(_load_flight(args.validate), correct_data=args.correct)
     diagnosis = diagnose(
         args.model, train, validate, outputs=_outputs(args.outputs), effects=chosen, segment=args.segment,
-        top=args.top, g=args.g, max_steps=args.max_steps, alpha=args.alpha, min_shrink=args.min_shrink,
+        top=args.top, g=args.g, max_steps=args.max_steps, min_shrink=args.min_shrink,
     )
     print(f"diagnosis of {args.model}: trained on {train.source}, validated on {validate.source} "
           f"(segment {args.segment:g} s; channels {','.join(diagnosis['outputs'])})")

@@ -72,7 +72,7 @@ class Predictor(eqx.Module):
 
     def segment_energy(self, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch S"]:
         """Normalised residual energy of each significance window (``window_samples`` long), summed over
-        channels: the paired samples of the ranking's significance test."""
+        channels: the paired samples of the ranking's window test (its ``p_value``)."""
         err = ((y - jnp.broadcast_to(self.measured, y.shape)) / jnp.broadcast_to(self.scale, y.shape)) ** 2
         seg = np.arange(self.time.shape[0]) // self.window_samples
         onehot = jnp.asarray(np.eye(int(seg[-1]) + 1)[seg])

@@ -1,13 +1,17 @@
-"""Rank candidate effects by how far each shrinks the held-out gap, with a significance test.
+"""Rank candidate effects by how far each shrinks the held-out gap, with a noise floor for significance.
 
 Parsimony is validation-only scoring: every candidate is fitted on the training flight and scored on the
-validation flight, so extra parameters earn nothing unless they predict new data. Significance: the
-validation record is cut into windows (0.5 s by default, :func:`~jaxheli.gap.predictor.make_predictor`); a
-candidate is significant when its per-window residual energy is below the base model's by a one-sided
-paired t-test at level ``alpha`` and its total shrink is at least ``min_shrink`` %. (Windows, not the
-restart segments: a 12 s record has only 6 segments, too few for the test to see a real 40 % shrink that
-is concentrated where one axis is excited.) When none is, the verdict is "no significant effect".
-"""
+validation flight, so extra parameters earn nothing unless they predict new data. A candidate is
+significant when its held-out shrink is at least ``min_shrink`` % (default 3 %): the noise floor, above the
+largest shrink any candidate reached on the effect-free flights of the blind check
+(``benchmarks/blind_diagnosis.py``), where a useless effect fitted to noise shrinks the held-out gap by
+at most about 1 % and usually makes it worse. When none is, the verdict is "no significant effect".
+
+Each entry also carries ``p_value``, a one-sided t-test over 0.5 s validation windows of the log ratio of
+base to candidate residual energy (:func:`~jaxheli.gap.predictor.make_predictor`), as a second opinion.
+It is not part of the verdict: an effect that acts only at large inputs (saturation, drag) concentrates
+its gain in a few windows, and window tests then miss shrinks of 60-90 % that the blind check knows are
+real."""
 
 from __future__ import annotations
 
@@ -29,7 +33,7 @@ from .predictor import Predictor, make_predictor
 
 def shrink_entries(
     names: list[str], outputs: tuple[str, ...], fit: Fit, gap_base: np.ndarray,
-    gaps: np.ndarray, seg_base: np.ndarray, segs: np.ndarray, alpha: float, min_shrink: float,
+    gaps: np.ndarray, seg_base: np.ndarray, segs: np.ndarray, min_shrink: float,
 ) -> list[dict[str, Any]]:
     """Ranking entries ``{effect, where, params, shrink_pct, shrink_by_channel, significant, ...}``, best first.
 
@@ -50,7 +54,7 @@ def shrink_entries(
             sentence.append(s)
             offset += n
         shrink = 100.0 * (total_base - float(np.mean(gaps[c]))) / total_base
-        d = seg_base - segs[c]
+        d = np.log(seg_base) - np.log(segs[c])
         p_value = float(scipy.stats.ttest_1samp(d, 0.0, alternative="greater").pvalue) if np.std(d) > 0 else 1.0
         out.append({
             "effect": name,
@@ -58,7 +62,7 @@ def shrink_entries(
             "params": params,
             "shrink_pct": shrink,
             "shrink_by_channel": {ch: 100.0 * float((gb - g) / gb) for ch, gb, g in zip(outputs, gap_base, gaps[c])},
-            "significant": bool(p_value < alpha and shrink >= min_shrink),
+            "significant": bool(shrink >= min_shrink),
             "p_value": p_value,
             "gap_base": total_base,
             "gap": float(np.mean(gaps[c])),
@@ -70,7 +74,7 @@ def shrink_entries(
 
 def _evaluate(
     train: Predictor, validate: Predictor, theta: Float[ArrayLike, "40"], names: list[str], combine: bool,
-    max_steps: int, alpha: float, min_shrink: float,
+    max_steps: int, min_shrink: float,
 ) -> list[dict[str, Any]]:
     outputs = train.outputs
     index, start = fx.candidate_arrays(names, outputs, combine=combine)
@@ -80,7 +84,7 @@ def _evaluate(
     etas = jax.vmap(lambda i, z: embed(base, i, z))(jnp.asarray(index), fit.z)
     gaps, segs = (np.asarray(a) for a in score(validate, theta, jnp.concatenate([base[None, :], etas], axis=0)))
     labels = ["+".join(names)] if combine else list(names)
-    return shrink_entries(labels, outputs, fit, gaps[0], gaps[1:], segs[0], segs[1:], alpha, min_shrink)
+    return shrink_entries(labels, outputs, fit, gaps[0], gaps[1:], segs[0], segs[1:], min_shrink)
 
 
 def rank_effects(
@@ -92,16 +96,15 @@ def rank_effects(
     segment: float = 2.0,
     g: float = G_SI,
     max_steps: int = 40,
-    alpha: float = 0.01,
-    min_shrink: float = 2.0,
+    min_shrink: float = 3.0,
 ) -> list[dict[str, Any]]:
     """Fit each effect on ``train`` (base ``theta`` fixed), score on ``validate``; ranking entries best first.
 
-    ``segment`` (s) is the predictor's restart interval; ``alpha`` and ``min_shrink`` (%) the significance
-    test (see the module docstring). Both flights must carry the same output channels.
+    ``segment`` (s) is the predictor's restart interval; ``min_shrink`` (%) the significance
+    floor (see the module docstring). Both flights must carry the same output channels.
     """
     train_pred, validate_pred = _predictors(train, validate, segment, g)
-    return _evaluate(train_pred, validate_pred, base_theta, list(effects), False, max_steps, alpha, min_shrink)
+    return _evaluate(train_pred, validate_pred, base_theta, list(effects), False, max_steps, min_shrink)
 
 
 def combine_effects(
@@ -113,14 +116,13 @@ def combine_effects(
     segment: float = 2.0,
     g: float = G_SI,
     max_steps: int = 40,
-    alpha: float = 0.01,
-    min_shrink: float = 2.0,
+    min_shrink: float = 3.0,
 ) -> dict[str, Any]:
     """The effects fitted jointly, one ranking entry named ``"a+b+..."``."""
     if not effects:
         raise ValueError("combine_effects: name at least one effect")
     train_pred, validate_pred = _predictors(train, validate, segment, g)
-    return _evaluate(train_pred, validate_pred, base_theta, list(effects), True, max_steps, alpha, min_shrink)[0]
+    return _evaluate(train_pred, validate_pred, base_theta, list(effects), True, max_steps, min_shrink)[0]
 
 
 def diagnose_effects(
