@@ -1,6 +1,7 @@
 """The whole diagnosis: injected delay found and reported, clean flights cleared, CLI writes every file."""
 
 import argparse
+import dataclasses
 import json
 
 import jax.numpy as jnp
@@ -117,6 +118,10 @@ def test_shared_outputs_and_bad_channels():
         shared_outputs(a.select(("u",)), b.select(("v",)))
     with pytest.raises(ValueError, match=r"validate flight\): no output channel\(s\) \['r'\]"):
         diagnose(TABLE2, a, b.select(("u", "v")), outputs=("u", "r"), **OPTIONS)
+    flat = dataclasses.replace(b, outputs=b.outputs * (np.array(b.output_names) != "v"))  # a log with v all zero
+    assert "v" not in shared_outputs(a, flat) and "u" in shared_outputs(a, flat)
+    with pytest.raises(ValueError, match=r"validate flight\): output channel\(s\) \['v'\] are constant"):
+        diagnose(TABLE2, a, flat, outputs=("u", "v"), **OPTIONS)
 
 
 def test_cli_writes_every_file(delayed, tmp_path):

@@ -41,13 +41,20 @@ _NOT_STATES = ("a", "b")
 
 
 def shared_outputs(train: FlightData, validate: FlightData) -> tuple[str, ...]:
-    """Channels both flights carry that the model measures (``a``, ``b`` excluded), in ``train``'s order."""
+    """Channels both flights carry that the model measures (``a``, ``b`` excluded) and that move on both
+    (a constant channel, e.g. velocities a log filled with zeros, carries no information), in ``train``'s
+    order."""
     names = tuple(c for c in train.output_names
-                  if c in validate.output_names and c in MEASURABLE and c not in _NOT_STATES)
+                  if c in validate.output_names and c in MEASURABLE and c not in _NOT_STATES
+                  and not _constant(train, c) and not _constant(validate, c))
     if not names:
         raise ValueError(f"{train.source} {train.output_names} and {validate.source} {validate.output_names} "
-                         f"share no model output channel")
+                         f"share no model output channel that varies")
     return names
+
+
+def _constant(flight: FlightData, channel: str) -> bool:
+    return bool(np.ptp(flight.output(channel)) == 0)
 
 
 def effect_eta(effect: str, params: dict[str, dict[str, float]], outputs: tuple[str, ...]) -> Float[np.ndarray, "E"]:
@@ -113,6 +120,11 @@ def diagnose(
     bad = [c for c in names if c in _NOT_STATES or c not in MEASURABLE]
     if bad:
         raise ValueError(f"diagnose: output channel(s) {bad} are not model states the diagnosis can use")
+    for role, flight in (("train", train), ("validate", validate)):
+        flat = [c for c in names if _constant(flight, c)]
+        if flat:
+            raise ValueError(f"{flight.source} ({role} flight): output channel(s) {flat} are constant; leave "
+                             f"them out of outputs")
     train, validate = train.select(names), validate.select(names)
     consistency = [{**f.to_json(), "flight": role} for role, flight in (("train", train), ("validate", validate))
                    for f in check(flight)]

@@ -74,10 +74,12 @@ def shrink_entries(
 
 def _evaluate(
     train: Predictor, validate: Predictor, theta: Float[ArrayLike, "40"], names: list[str], combine: bool,
-    max_steps: int, min_shrink: float,
+    max_steps: int, min_shrink: float, warm: np.ndarray | None = None,
 ) -> list[dict[str, Any]]:
     outputs = train.outputs
     index, start = fx.candidate_arrays(names, outputs, combine=combine)
+    if warm is not None:
+        start[:, : len(warm)] = warm
     base = jnp.asarray(no_effect(outputs))
     theta = jnp.asarray(theta)
     fit = fit_candidates(train, theta, base, jnp.asarray(index), jnp.asarray(start), max_steps)
@@ -117,12 +119,18 @@ def combine_effects(
     g: float = G_SI,
     max_steps: int = 40,
     min_shrink: float = 3.0,
+    ranking: list[dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
-    """The effects fitted jointly, one ranking entry named ``"a+b+..."``."""
+    """The effects fitted jointly, one ranking entry named ``"a+b+..."``; with ``ranking`` (entries of
+    :func:`rank_effects` for these effects) the joint fit starts from each effect's own fit."""
     if not effects:
         raise ValueError("combine_effects: name at least one effect")
     train_pred, validate_pred = _predictors(train, validate, segment, g)
-    return _evaluate(train_pred, validate_pred, base_theta, list(effects), True, max_steps, min_shrink)[0]
+    warm = None
+    if ranking is not None:
+        fitted = {e["effect"]: e["params"] for e in ranking}
+        warm = np.array([fitted[e][p.name]["value"] for e in effects for p in fx.params(e, train.output_names)])
+    return _evaluate(train_pred, validate_pred, base_theta, list(effects), True, max_steps, min_shrink, warm)[0]
 
 
 def diagnose_effects(
@@ -133,7 +141,8 @@ def diagnose_effects(
     significant effects (``None`` unless two or more), and a sentence."""
     ranking = rank_effects(base_theta, train, validate, effects, **options)
     chosen = [e["effect"] for e in ranking if e["significant"]][:top]
-    combination = combine_effects(base_theta, train, validate, chosen, **options) if len(chosen) > 1 else None
+    combination = (combine_effects(base_theta, train, validate, chosen, ranking=ranking, **options)
+                   if len(chosen) > 1 else None)
     return {"ranking": ranking, "combination": combination, "verdict": verdict(ranking)}
 
 
