@@ -55,7 +55,7 @@ from jaxheli.results import save_result
 # %matplotlib inline
 OUT = Path("walkthrough")
 OUT.mkdir(exist_ok=True)
-ITERATIONS = 30  # IWO / GA generations (the paper: 1000)
+ITERATIONS = 15  # IWO / GA generations (the paper: 1000)
 TRIALS = 2  # independent trials for 95 % intervals (the paper: 10)
 summary = {}
 
@@ -192,7 +192,7 @@ show_channels(train, ("p", "q", "phi", "theta"), "training flight (synthetic, pr
 # %%
 results = {}
 results["iwo+polish"] = jaxheli.identify(train, method="iwo+polish", validate=validate, iterations=ITERATIONS,
-                                         trials=TRIALS, seed=0, polish_steps=40, progress=False)
+                                         trials=TRIALS, seed=0, polish_steps=20, progress=False)
 r = results["iwo+polish"]
 print(f"cost {r.polish['cost_before']:.4f} after IWO -> {r.polish['cost_after']:.4f} after the polish "
       f"({r.seconds:.0f} s)")
@@ -218,7 +218,7 @@ for method, res in results.items():
 # shape match) is blind to amplitude, so the Theil inequality coefficient (TIC; <= 0.25-0.3 is a good
 # time-domain match) is shown beside it.
 
-# With the walkthrough's 30 generations and 2 trials the population searches have not converged over the
+# With the walkthrough's 15 generations and 2 trials the population searches have not converged over the
 # 40-parameter box (the paper spends 1000 generations and 10 trials; `benchmarks/paper_comparison.py` runs
 # that), while PEM, a local gradient method on a well-excited synthetic flight, converges from the box
 # centre. The engineer's rule applies: take the model that predicts the held-out flight best.
@@ -241,14 +241,14 @@ display(Image(filename=str(OUT / best / "verification_validate.png")))
 #
 # What is left between the identified model and the validation flight? `diagnose` (as `jaxheli diagnose`)
 # checks both flights' consistency, localises the residual by channel, frequency band, time window and lag,
-# then fits candidate unmodelled effects (here: a stick-to-rotor delay, control saturation, and sensor
-# bias with drift) on the *training* flight with the identified model held fixed, and ranks them by
+# then fits candidate unmodelled effects (here: a stick-to-rotor delay and control saturation; `jaxheli
+# diagnose` tries all eight by default) on the *training* flight with the identified model held fixed, and ranks them by
 # how far they shrink the gap on the *validation* flight: extra parameters earn nothing unless they predict
 # new data. Each prediction restarts from the measured states every 2 s.
 
 # %%
 theta = results[best].params
-diagnosis = diagnose(theta, train, validate, effects=("input_delay", "control_saturation", "output_bias_drift"),
+diagnosis = diagnose(theta, train, validate, effects=("input_delay", "control_saturation"),
                      segment=2.0, top=2, max_steps=15, localise_train=False)
 print("largest gap:", diagnosis["localisation"]["summary"])
 print("\n".join(ranking_table(diagnosis)))
