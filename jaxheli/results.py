@@ -1,4 +1,5 @@
-"""Write an identification result to a folder: ``result.json``, ``result.npz`` and PNG plots."""
+"""Write an identification result to a folder: ``result.json``, ``result.npz``, the flights as fitted (NPZ)
+and PNG plots."""
 
 from __future__ import annotations
 
@@ -8,34 +9,51 @@ from pathlib import Path
 import numpy as np
 
 from .flight import FlightData
+from .evaluate import default_outputs
 from .identify import IdentificationResult
 from .initial_state import estimate_x0
+from .io.npz import save_npz
 from .model import PARAM_NAMES
 from .plots import plot_convergence, plot_time_domain
 from .simulate import make_simulator
 
 PLOT_CHANNELS: tuple[str, ...] = ("p", "q", "phi", "theta")
 """Channels of the time-domain verification plots (the paper's Figs. 4-6)."""
+FLIGHT_FILES: dict[str, str] = {"train": "train_flight.npz", "validate": "validate_flight.npz"}
+"""File names, inside a result folder, of the flights exactly as fitted and scored (after preprocessing; their
+``metadata["preprocessing"]`` says what was done to the source file). ``result.json``'s ``data`` block names
+them, and ``jaxheli report`` reads them rather than the raw source files."""
 
 
 def _verification(result: IdentificationResult, flight: FlightData, x0, path: Path, title: str) -> Path:
-    chans = tuple(c for c in PLOT_CHANNELS if c in flight.output_names) or flight.output_names
-    opts = {"outputs": chans, "hold": result.settings["hold"], "g": result.settings["g"]}
+    """Plot ``PLOT_CHANNELS``, simulated with the channels the scores used (the same simulation, so the
+    same compiled simulator) and the initial state ``x0`` (``"estimate"``, ``"zero"`` or a state)."""
+    scored = tuple(c for c in result.settings["outputs"] if c in flight.output_names) or default_outputs(flight)
+    chans = tuple(c for c in PLOT_CHANNELS if c in scored) or scored
+    opts = {"outputs": scored, "hold": result.settings["hold"], "g": result.settings["g"]}
     if isinstance(x0, str) and x0 == "estimate":
         x0 = estimate_x0(result.params, flight, **opts)
     sim = make_simulator(flight, x0=x0, segment=result.settings["segment"], **opts)
-    y = np.asarray(sim(result.params))
+    y = np.asarray(sim(result.params))[:, [scored.index(c) for c in chans]]
     return plot_time_domain(flight.time, flight.select(chans).outputs, {result.method: y}, chans, path, title)
 
 
 def save_result(
     result: IdentificationResult, out_dir: str | Path, train: FlightData, validate: FlightData | None = None
 ) -> list[Path]:
-    """Save ``result`` under ``out_dir``; returns the files written."""
+    """Save ``result`` under ``out_dir``; returns the files written.
+
+    Writes ``result.json``, ``result.npz``, ``train_flight.npz`` / ``validate_flight.npz`` (the flights as the
+    fit and the scores saw them) and the PNG plots (time-domain verification, convergence).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    flights = {role: f for role, f in (("train", train), ("validate", validate)) if f is not None}
     files = [out / "result.json", out / "result.npz"]
-    files[0].write_text(json.dumps(result.to_json(), indent=2))
+    files += [save_npz(f, out / FLIGHT_FILES[role]) for role, f in flights.items()]
+    content = result.to_json()
+    content["data"] = {role: FLIGHT_FILES[role] for role in flights}
+    files[0].write_text(json.dumps(content, indent=2))
     np.savez(
         files[1],
         params=result.params,

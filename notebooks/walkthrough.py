@@ -272,8 +272,7 @@ summary["diagnosis"] = {k: diagnosis[k] for k in ("verdict", "ranking", "gap_bef
 # time-domain verification, frequency responses with coherence, convergence and the diagnosis.
 
 # %%
-report = jaxheli.write_report([OUT / m for m in results], OUT / "report.html", diagnosis=OUT / "diagnosis",
-                              data=[OUT / "train.npz", OUT / "validate.npz"])
+report = jaxheli.write_report([OUT / m for m in results], OUT / "report.html", diagnosis=OUT / "diagnosis")
 html = report.read_text(encoding="utf-8")
 sections = [s for s in SECTION_IDS if f'<section id="{s}"' in html]
 print(f"{report}: {len(html) / 1e6:.1f} MB, sections: {', '.join(sections)}")

@@ -12,7 +12,8 @@ from jaxheli.excitation import Excitation
 from jaxheli.gap import augmented, effects
 from jaxheli.gap.kalman import gust_filter, riccati
 from jaxheli.gap.predictor import make_predictor, noise_variance
-from jaxheli.gap.ranking import rank_effects, verdict
+from jaxheli.gap.fit_effect import Fit
+from jaxheli.gap.ranking import rank_effects, shrink_entries, verdict
 from jaxheli.model import TABLE2
 from jaxheli.synth import DEFAULT_OUTPUTS, piloted_flight
 
@@ -148,3 +149,24 @@ def test_rank_effects_finds_an_injected_lon_delay():
     assert top["shrink_pct"] > 50 and set(top["shrink_by_channel"]) == set(OUT)
     assert not ranking[-1]["significant"]
     assert verdict(ranking).startswith("input_delay")
+
+
+def test_fits_outside_the_physical_range_are_never_significant():
+    """A 16 s "input delay" (as a real fit once gave) is reported, with the reason, but is not the verdict;
+    the same shrink from a plausible 80 ms delay is."""
+    assert effects.implausible("input_delay", OUT, np.array([0.08, -0.2, 0.0, 0.5])) == []
+    assert effects.implausible("input_delay", OUT, np.array([16.0, 0.0, 0.0, 0.0])) == ["delay_lat 16 s > 0.5 s"]
+    assert effects.implausible("output_bias_drift", OUT, np.full(2 * len(OUT), 1e3)) == []
+    assert effects.implausible("process_noise", OUT, np.array([0.5, 12.0])) == ["gust_tau 12 s > 10 s"]
+    k = 2 * len(OUT)
+    z = np.zeros((2, k))
+    z[0, :4], z[1, :4] = [16.0, 0.01, 0.01, 0.01], [0.08, 0.01, 0.01, 0.01]
+    fit = Fit(z=z, stderr=np.full((2, k), 0.005), rss=np.ones(2), steps=np.ones(2, int), converged=np.ones(2, bool))
+    gap_base, segs = np.full(len(OUT), 0.2), np.ones((2, 4))
+    ranking = shrink_entries(["input_delay", "input_delay"], OUT, fit, gap_base, np.stack([0.5 * gap_base] * 2),
+                             np.ones(4), segs, min_shrink=3.0)
+    implausible, plausible = sorted(ranking, key=lambda e: e["params"]["delay_lat"]["value"], reverse=True)
+    assert implausible["shrink_pct"] == plausible["shrink_pct"] == pytest.approx(50.0)
+    assert not implausible["significant"] and not implausible["plausible"]
+    assert "outside the physical range: delay_lat 16 s > 0.5 s" in implausible["summary"]
+    assert plausible["significant"] and plausible["plausible"]

@@ -25,6 +25,7 @@ from jaxheli.gap.consistency import check
 from jaxheli.identify import IdentificationResult, intervals95
 from jaxheli.io import load, save_csv
 from jaxheli.model import PARAM_NAMES, PINNED, TABLE2
+from jaxheli.preprocess import lowpass, trim
 from jaxheli.report import SECTION_IDS, add_parser, load_diagnosis, load_flights, load_results, write_report
 from jaxheli.report.html import esc, num
 from jaxheli.results import save_result
@@ -126,8 +127,8 @@ def test_self_contained(case):
     assert not re.search(r'(src|href)="(?!data:|#)', html), "external resource referenced"
     assert "<link" not in html and "<script" not in html
     images = _images(html)
-    # verification (1 flight), frequency (2 methods x 1 flight), convergence, diagnosis plot
-    assert len(images) == 1 + 2 + 1 + 1
+    # verification (1 flight), frequency (1 flight, both methods overlaid), convergence, diagnosis plot
+    assert len(images) == 1 + 1 + 1 + 1
     for png in images:
         pixels = matplotlib.image.imread(io.BytesIO(png), format="png")
         assert pixels.shape[0] > 10 and pixels.std() > 0.01
@@ -156,6 +157,22 @@ def test_flights_from_result_settings(case):
     flights = load_flights(load_results([case["folders"]["pem"]]))
     assert [f.source for f in flights] == [case["train"].source, case["validate"].source]
     np.testing.assert_array_equal(flights[1].outputs, case["validate"].outputs)
+
+
+def test_flights_as_fitted_not_as_recorded(case, tmp_path):
+    # A result fitted on preprocessed flights: the report shows those, with their steps, not the raw files.
+    train = lowpass(case["train"], 1.0)
+    validate = trim(case["validate"], drop_samples=25)
+    save_result(case["results"]["pem"], tmp_path / "pem", train, validate)
+    flights = load_flights(load_results([tmp_path / "pem", case["folders"]["iwo"]]))
+    assert [f.n_samples for f in flights] == [train.n_samples, validate.n_samples, case["train"].n_samples,
+                                              case["validate"].n_samples]
+    np.testing.assert_array_equal(flights[0].outputs, train.outputs)
+    np.testing.assert_array_equal(flights[1].outputs, validate.outputs)
+    body = _section(write_report([tmp_path / "pem"], tmp_path / "r.html").read_text(), "data-summary")
+    assert "lowpass (cutoff_hz 1" in body and "drop_samples [25, 25]" in body
+    assert f"<td>{validate.n_samples}</td>" in body
+    assert f"<td>{np.std(train.output('p')):.4g}</td>" in body
 
 
 def test_parameters_table(case):
@@ -192,7 +209,7 @@ def test_verification_and_frequency(case):
     pearson = [float(v) for v in re.findall(r"<td>(.*?)</td>", row)]
     assert len(pearson) == len(CHANNELS) and min(pearson) > 0.95
     freq = _section(case["html"], "frequency-response")
-    assert len(_images(freq)) == 2
+    assert len(_images(freq)) == 1 and "frequency responses on" in freq and "pem, iwo" in freq
     for pair in ("lat -&gt; p", "lon -&gt; q", "ped -&gt; r"):
         assert pair in freq
 
@@ -211,6 +228,8 @@ def test_convergence_and_diagnosis(case):
 
 def test_without_flights_or_diagnosis(case, tmp_path):
     folder = shutil.copytree(case["folders"]["iwo"], tmp_path / "moved")
+    for saved in folder.glob("*_flight.npz"):
+        saved.unlink()
     content = json.loads((folder / "result.json").read_text())
     content["settings"]["train_source"] = str(tmp_path / "gone" / "train.csv")
     content["settings"]["validate_source"] = str(tmp_path / "gone" / "validate.csv")

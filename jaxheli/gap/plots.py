@@ -89,7 +89,7 @@ def plot_lag_correlation(localisation: Mapping[str, object], path: str | Path, t
 
 def plot_frequency_response(
     flight: FrequencyResponse,
-    model: np.ndarray | None,
+    model: np.ndarray | Mapping[str, np.ndarray] | None,
     output_names: Sequence[str],
     path: str | Path,
     *,
@@ -97,12 +97,14 @@ def plot_frequency_response(
     pairs: Sequence[tuple[str, str]] | None = None,
     title: str = "",
 ) -> Path:
-    """Bode plots of the flight estimate (dots, opacity = coherence) against the model (``[F, k, m]`` line),
-    one column per (input, output) pair: magnitude (dB), phase (deg), partial coherence."""
+    """Bode plots of the flight estimate (dots, opacity = coherence) against the model (``[F, k, m]`` line, or
+    several models as ``{label: [F, k, m]}``, one line each), one column per (input, output) pair: magnitude
+    (dB), phase (deg), partial coherence."""
     outputs, inputs = list(output_names), list(input_names)
     chosen = [p for p in (PRIMARY_PAIRS if pairs is None else pairs) if p[0] in inputs and p[1] in outputs]
     if not chosen:
         raise ValueError(f"plot_frequency_response: no pair of {pairs or PRIMARY_PAIRS} in {inputs} x {outputs}")
+    models = {} if model is None else dict(model) if isinstance(model, Mapping) else {"model": model}
     f = np.asarray(flight.freq)
     fig, axes = plt.subplots(3, len(chosen), figsize=(2.8 * len(chosen) + 0.5, 7), sharex=True, squeeze=False)
     for c, (i, o) in enumerate(chosen):
@@ -113,17 +115,18 @@ def plot_frequency_response(
         colours[:, 3] = 0.15 + 0.85 * gamma
         axes[0, c].scatter(f, 20 * np.log10(np.abs(H)), s=6, c=colours, label="flight")
         axes[1, c].scatter(f, np.degrees(np.angle(H)), s=6, c=colours)
-        if model is not None:
-            Hm = np.asarray(model)[:, k, m]
-            axes[0, c].plot(f, 20 * np.log10(np.abs(Hm)), color="C3", lw=1.2, label="model")
-            axes[1, c].plot(f, np.degrees(np.angle(Hm)), color="C3", lw=1.2)
+        for j, (label, response) in enumerate(models.items()):
+            Hm = np.asarray(response)[:, k, m]
+            colour = "C3" if len(models) == 1 else f"C{(j + 3) % 10}"
+            axes[0, c].plot(f, 20 * np.log10(np.abs(Hm)), color=colour, lw=1.2, label=label)
+            axes[1, c].plot(f, np.degrees(np.angle(Hm)), color=colour, lw=1.2)
         axes[2, c].plot(f, gamma, color="C2", lw=1.0)
         axes[2, c].set_ylim(0, 1.02)
         axes[0, c].set_title(f"{i} -> {o}", fontsize=9)
         axes[2, c].set_xlabel("frequency [Hz]")
         for ax in axes[:, c]:
             ax.set_xscale("log")
-            ax.grid(alpha=0.3, which="both")
+            ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel("magnitude [dB]")
     axes[1, 0].set_ylabel("phase [deg]")
     axes[2, 0].set_ylabel("partial coherence")

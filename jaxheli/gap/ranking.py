@@ -5,7 +5,9 @@ validation flight, so extra parameters earn nothing unless they predict new data
 significant when its held-out shrink is at least ``min_shrink`` % (default 3 %): the noise floor, above the
 largest shrink any candidate reached on the effect-free flights of the blind check
 (``benchmarks/blind_diagnosis.py``), where a useless effect fitted to noise shrinks the held-out gap by
-at most about 1 % and usually makes it worse. When none is, the verdict is "no significant effect".
+at most about 1 % and usually makes it worse. A candidate whose fitted parameters leave their physically
+plausible range (:func:`jaxheli.gap.effects.implausible`, e.g. a 16 s "input delay") is never significant:
+it shrinks the gap by absorbing something else. When none is, the verdict is "no significant effect".
 
 Each entry also carries ``p_value``, a one-sided t-test over 0.5 s validation windows of the log ratio of
 base to candidate residual energy (:func:`~jaxheli.gap.predictor.make_predictor`), as a second opinion.
@@ -45,14 +47,17 @@ def shrink_entries(
         parts = name.split("+")
         value = np.asarray(fit.z[c])
         stderr = np.asarray(fit.stderr[c])
-        params, where, sentence, offset = {}, [], [], 0
+        params, where, sentence, outside, offset = {}, [], [], [], 0
         for part in parts:
             n = len(fx.params(part, outputs))
             p, w, s = fx.describe(part, outputs, value[offset:offset + n], stderr[offset:offset + n])
             params.update(p)
             where += w
             sentence.append(s)
+            outside += fx.implausible(part, outputs, value[offset:offset + n])
             offset += n
+        if outside:
+            sentence.append("outside the physical range: " + ", ".join(outside))
         shrink = 100.0 * (total_base - float(np.mean(gaps[c]))) / total_base
         d = np.log(seg_base) - np.log(segs[c])
         p_value = float(scipy.stats.ttest_1samp(d, 0.0, alternative="greater").pvalue) if np.std(d) > 0 else 1.0
@@ -62,7 +67,8 @@ def shrink_entries(
             "params": params,
             "shrink_pct": shrink,
             "shrink_by_channel": {ch: 100.0 * float((gb - g) / gb) for ch, gb, g in zip(outputs, gap_base, gaps[c])},
-            "significant": bool(shrink >= min_shrink),
+            "significant": bool(shrink >= min_shrink and not outside),
+            "plausible": not outside,
             "p_value": p_value,
             "gap_base": total_base,
             "gap": float(np.mean(gaps[c])),
@@ -74,10 +80,10 @@ def shrink_entries(
 
 def _evaluate(
     train: Predictor, validate: Predictor, theta: Float[ArrayLike, "40"], names: list[str], combine: bool,
-    max_steps: int, min_shrink: float, warm: np.ndarray | None = None,
+    max_steps: int, min_shrink: float, warm: np.ndarray | None = None, shape: tuple[int, int] | None = None,
 ) -> list[dict[str, Any]]:
     outputs = train.outputs
-    index, start = fx.candidate_arrays(names, outputs, combine=combine)
+    index, start = fx.candidate_arrays(names, outputs, combine=combine, shape=shape)
     if warm is not None:
         start[:, : len(warm)] = warm
     base = jnp.asarray(no_effect(outputs))
@@ -86,7 +92,8 @@ def _evaluate(
     etas = jax.vmap(lambda i, z: embed(base, i, z))(jnp.asarray(index), fit.z)
     gaps, segs = (np.asarray(a) for a in score(validate, theta, jnp.concatenate([base[None, :], etas], axis=0)))
     labels = ["+".join(names)] if combine else list(names)
-    return shrink_entries(labels, outputs, fit, gaps[0], gaps[1:], segs[0], segs[1:], min_shrink)
+    n = len(labels) + 1
+    return shrink_entries(labels, outputs, fit, gaps[0], gaps[1:n], segs[0], segs[1:n], min_shrink)
 
 
 def rank_effects(
@@ -99,14 +106,16 @@ def rank_effects(
     g: float = G_SI,
     max_steps: int = 40,
     min_shrink: float = 3.0,
+    shape: tuple[int, int] | None = None,
 ) -> list[dict[str, Any]]:
     """Fit each effect on ``train`` (base ``theta`` fixed), score on ``validate``; ranking entries best first.
 
     ``segment`` (s) is the predictor's restart interval; ``min_shrink`` (%) the significance
-    floor (see the module docstring). Both flights must carry the same output channels.
+    floor (see the module docstring); ``shape`` pads the batch of fits (:func:`~jaxheli.gap.effects.
+    candidate_arrays`). Both flights must carry the same output channels.
     """
     train_pred, validate_pred = _predictors(train, validate, segment, g)
-    return _evaluate(train_pred, validate_pred, base_theta, list(effects), False, max_steps, min_shrink)
+    return _evaluate(train_pred, validate_pred, base_theta, list(effects), False, max_steps, min_shrink, shape=shape)
 
 
 def combine_effects(
@@ -120,9 +129,11 @@ def combine_effects(
     max_steps: int = 40,
     min_shrink: float = 3.0,
     ranking: list[dict[str, Any]] | None = None,
+    shape: tuple[int, int] | None = None,
 ) -> dict[str, Any]:
     """The effects fitted jointly, one ranking entry named ``"a+b+..."``; with ``ranking`` (entries of
-    :func:`rank_effects` for these effects) the joint fit starts from each effect's own fit."""
+    :func:`rank_effects` for these effects) the joint fit starts from each effect's own fit; ``shape`` pads the
+    fit as :func:`rank_effects` does."""
     if not effects:
         raise ValueError("combine_effects: name at least one effect")
     train_pred, validate_pred = _predictors(train, validate, segment, g)
@@ -130,7 +141,8 @@ def combine_effects(
     if ranking is not None:
         fitted = {e["effect"]: e["params"] for e in ranking}
         warm = np.array([fitted[e][p.name]["value"] for e in effects for p in fx.params(e, train.output_names)])
-    return _evaluate(train_pred, validate_pred, base_theta, list(effects), True, max_steps, min_shrink, warm)[0]
+    return _evaluate(train_pred, validate_pred, base_theta, list(effects), True, max_steps, min_shrink, warm,
+                     shape)[0]
 
 
 def diagnose_effects(
@@ -138,10 +150,13 @@ def diagnose_effects(
     effects: tuple[str, ...] | list[str] = fx.ALL, *, top: int = 3, **options,
 ) -> dict[str, Any]:
     """``{"ranking", "combination", "verdict"}``: the ranking, the joint fit of the (up to ``top``)
-    significant effects (``None`` unless two or more), and a sentence."""
-    ranking = rank_effects(base_theta, train, validate, effects, **options)
+    significant effects (``None`` unless two or more), and a sentence. With ``top > 1`` the single fits are
+    padded to the joint fit's width (:func:`~jaxheli.gap.effects.joint_shape`), so both run through one
+    compiled solver."""
+    shape = fx.joint_shape(effects, train.output_names, top) if top > 1 else None
+    ranking = rank_effects(base_theta, train, validate, effects, shape=shape, **options)
     chosen = [e["effect"] for e in ranking if e["significant"]][:top]
-    combination = (combine_effects(base_theta, train, validate, chosen, ranking=ranking, **options)
+    combination = (combine_effects(base_theta, train, validate, chosen, ranking=ranking, shape=shape, **options)
                    if len(chosen) > 1 else None)
     return {"ranking": ranking, "combination": combination, "verdict": verdict(ranking)}
 

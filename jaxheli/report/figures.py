@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -46,14 +46,14 @@ def convergence_png(results: Sequence[ResultSource]) -> bytes | None:
 
 
 def frequency_png(
-    estimate: FrequencyResponse, model: np.ndarray, channels: Sequence[str], pairs: Sequence[tuple[str, str]],
-    title: str,
+    estimate: FrequencyResponse, models: Mapping[str, np.ndarray], channels: Sequence[str],
+    pairs: Sequence[tuple[str, str]], title: str,
 ) -> bytes:
-    """Bode plots (magnitude, phase, partial coherence) of the flight estimate against one model's response
-    ``[F, k, 4]`` on the (input, output) ``pairs`` (:func:`jaxheli.gap.plots.plot_frequency_response`)."""
+    """Bode plots (magnitude, phase, partial coherence) of the flight estimate against each model's response
+    ``{label: [F, k, 4]}`` on the (input, output) ``pairs`` (:func:`jaxheli.gap.plots.plot_frequency_response`)."""
     from ..gap.plots import plot_frequency_response
 
-    return _render(plot_frequency_response, estimate, model, tuple(channels), pairs=tuple(pairs), title=title)
+    return _render(plot_frequency_response, estimate, models, tuple(channels), pairs=tuple(pairs), title=title)
 
 
 def _render(plot: Callable[..., Path], *args, **kwargs) -> bytes:

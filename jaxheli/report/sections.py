@@ -49,13 +49,13 @@ def overview(results: Sequence[ResultSource], flights: Sequence[FlightData], dia
 
 
 def data_summary(results: Sequence[ResultSource], flights: Sequence[FlightData]) -> Html:
-    """Flights used: source, role, samples, dt, duration, channels, and each channel's range."""
+    """Flights used: source, role, samples, dt, duration, channels, preprocessing, and each channel's range."""
     body: list[Any] = []
-    rows = [[f.source, _role(f.source, results), f.n_samples, num(f.dt, ".4g"), num(f.duration, ".2f"),
-             ", ".join(f.output_names)] for f in flights]
+    rows = [[f.source, _role(f.source, results), preprocessing_steps(f), f.n_samples, num(f.dt, ".4g"),
+             num(f.duration, ".2f"), ", ".join(f.output_names)] for f in flights]
     if rows:
-        body.append(table(["source", "role", "samples", "dt [s]", "duration [s]", "output channels"], rows,
-                          text_columns=2))
+        head = ["source", "role", "preprocessing", "samples", "dt [s]", "duration [s]", "output channels"]
+        body.append(table(head, rows, text_columns=3))
     missing = [s for s in recorded_sources(results) if not any(_same_file(s, f.source) for f in flights)]
     if missing:
         body.append(note("Flights recorded in the results but not loaded here (not files on this machine; pass ",
@@ -67,6 +67,26 @@ def data_summary(results: Sequence[ResultSource], flights: Sequence[FlightData])
                           ([n, u, num(c.min()), num(c.max()), num(c.mean()), num(c.std())] for n, u, c in columns),
                           caption=f"ranges: {f.source}", text_columns=2))
     return section("data-summary", TITLES["data-summary"], *body)
+
+
+def preprocessing_steps(flight: FlightData) -> str:
+    """The flight's ``metadata["preprocessing"]`` in one line: each step with its scalar settings and, for a
+    consistency correction, the kinds of finding applied (``-`` for a record used as read)."""
+    def value(v: Any) -> str | None:
+        if isinstance(v, float):
+            return f"{v:.4g}"
+        if isinstance(v, int | str):
+            return str(v)
+        if isinstance(v, list | tuple) and all(isinstance(x, int | float) for x in v):
+            return "[" + ", ".join(map(value, v)) + "]"
+        return None
+
+    steps = []
+    for record in flight.metadata.get("preprocessing", []):
+        shown = [f"{k} {value(v)}" for k, v in record.items() if k != "step" and value(v) is not None]
+        shown += [f["kind"] for f in record.get("applied", []) if isinstance(f, dict) and "kind" in f]
+        steps.append(f"{record.get('step', '?')} ({', '.join(shown)})" if shown else str(record.get("step", "?")))
+    return "; ".join(steps) or "-"
 
 
 def parameters(results: Sequence[ResultSource]) -> Html:
@@ -147,7 +167,7 @@ def frequency_response(results: Sequence[ResultSource], flights: Sequence[Flight
         return section("frequency-response", TITLES["frequency-response"],
                        note("Needs the flight data: pass ", tag("code", "--data FILE"), " (or keep the files named in "
                             "result.json settings where they were)."))
-    body: list[Any] = [tag("p", "Dots: flight estimate (opacity = partial coherence); line: model. Mismatch over "
+    body: list[Any] = [tag("p", "Dots: flight estimate (opacity = partial coherence); lines: the models. Mismatch over "
                             "bins with partial coherence >= 0.6: mean magnitude error (dB), mean phase error (deg) and "
                             "the CIFER cost J (<= 100 acceptable, <= 50 excellent).")]
     for f in flights:
@@ -160,10 +180,11 @@ def frequency_response(results: Sequence[ResultSource], flights: Sequence[Flight
             continue
         pairs = [(i, o) for i, o in PRIMARY_PAIRS if o in chans and o not in ("u", "v")]
         rows = {p: [f"{p[0]} -> {p[1]}"] for p in pairs}
-        for r in results:
-            model = np.asarray(model_frequency_response(r.params, estimate.freq, chans, r.settings.get("g", G_SI)))
-            body.append(png_figure(frequency_png(estimate, model, chans, pairs, f"{r.label} on {f.source}"),
-                                   f"{r.label}: frequency responses on {f.source}"))
+        models = {r.label: np.asarray(model_frequency_response(r.params, estimate.freq, chans,
+                                                               r.settings.get("g", G_SI))) for r in results}
+        body.append(png_figure(frequency_png(estimate, models, chans, pairs, f"flight against the models on {f.source}"),
+                               f"frequency responses on {f.source}: " + ", ".join(models)))
+        for model in models.values():
             err = mismatch(estimate, model)
             for i, o in pairs:
                 k, m = chans.index(o), INPUT_NAMES.index(i)
