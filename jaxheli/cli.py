@@ -70,7 +70,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from .results import save_result
 
     train = _load_flight(args.train)
-    validate = _load_flight(args.validate) if args.validate else None
+    validate = None if not args.validate else train if args.validate == args.train else _load_flight(args.validate)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     result = identify(

@@ -36,16 +36,19 @@ def test_summary_arithmetic_and_table():
          "oracle_shrink_pct": 50.0},
         {"kind": "input_delay", "top": "actuator_lag", "correct": False, "magnitude_error": 0.3, "shrink_pct": 45.0,
          "oracle_shrink_pct": 50.0},
+        {"kind": "input_delay", "top": "none", "correct": False, "magnitude_error": 0.5, "shrink_pct": 1.0,
+         "oracle_shrink_pct": 4.0},
         {"kind": "none", "top": "none", "correct": True},
         {"kind": "none", "top": "none", "correct": True},
         {"kind": "none", "top": "process_noise", "correct": False},
     ]
     s = summarise(records)
     row = s["kinds"]["input_delay"]
-    assert row["top1_pct"] == 50.0 and row["magnitude_error_median"] == pytest.approx(0.2)
-    assert row["shrink_vs_oracle_pct"] == pytest.approx(85.0)
+    assert row["top1_pct"] == pytest.approx(100 / 3) and row["magnitude_error_median"] == pytest.approx(0.3)
+    assert row["shrink_vs_oracle_pct"] == pytest.approx(80.0)
+    assert row["detectable_trials"] == 2 and row["top1_detectable_pct"] == 50.0  # the 4 % trial is below 10 %
     assert s["false_positive_pct"] == pytest.approx(100 / 3)
-    assert "| input_delay | 2 | 50 | 20.0 % | 85.0 |" in markdown(s)
+    assert "| input_delay | 3 | 33 | 2, 50 | 30.0 % | 80.0 |" in markdown(s)
 
 
 def test_validation_flight_differs_from_training_flight():

@@ -327,15 +327,15 @@ def test_identify_and_diagnose_commands_take_a_ulog_like_a_px4log(truth, truth_l
     from jaxheli.cli import main
 
     def identify(path, out):
-        assert main(["identify", "--method", "iwo", "--train", str(path), "--validate", str(path), "--iterations",
-                     "2", "--outputs", "p,q,phi,theta", "--out", str(out)]) == 0
+        assert main(["identify", "--method", "iwo", "--train", str(path), "--iterations", "2", "--outputs",
+                     "p,q,phi,theta", "--out", str(out)]) == 0
         return json.loads((out / "result.json").read_text())
 
     for path in (shared_data / "px4logs/sess006/log001.px4log", truth_log):
         result = identify(path, tmp_path / path.suffix[1:])
         assert result["settings"]["train_source"] == str(path)
-        assert set(result["validate"]["pearson"]) == {"p", "q", "phi", "theta"}
-        assert all(np.isfinite(v) for v in result["validate"]["pearson"].values())
+        assert set(result["train"]["pearson"]) == {"p", "q", "phi", "theta"}
+        assert all(np.isfinite(v) for v in result["train"]["pearson"].values())
     saved = load(tmp_path / "ulg" / "train_flight.npz")
     np.testing.assert_allclose(saved.outputs, truth.select(saved.output_names).outputs, atol=1e-5)
     assert main(["diagnose", "--model", str(tmp_path / "ulg" / "result.json"), "--train", str(truth_log),

@@ -28,6 +28,7 @@ from jaxheli.model import PARAM_NAMES, PINNED, TABLE2
 from jaxheli.preprocess import lowpass, trim
 from jaxheli.report import SECTION_IDS, add_parser, load_diagnosis, load_flights, load_results, write_report
 from jaxheli.report.html import esc, num
+from jaxheli.report.sections import data_summary
 from jaxheli.results import save_result
 from jaxheli.synth import piloted_flight
 
@@ -169,7 +170,8 @@ def test_flights_as_fitted_not_as_recorded(case, tmp_path):
                                               case["validate"].n_samples]
     np.testing.assert_array_equal(flights[0].outputs, train.outputs)
     np.testing.assert_array_equal(flights[1].outputs, validate.outputs)
-    body = _section(write_report([tmp_path / "pem"], tmp_path / "r.html").read_text(), "data-summary")
+    results = load_results([tmp_path / "pem"])
+    body = str(data_summary(results, load_flights(results)))
     assert "lowpass (cutoff_hz 1" in body and "drop_samples [25, 25]" in body
     assert f"<td>{validate.n_samples}</td>" in body
     assert f"<td>{np.std(train.output('p')):.4g}</td>" in body
