@@ -117,7 +117,7 @@ def plot_frequency_response(
         axes[1, c].scatter(f, np.degrees(np.angle(H)), s=6, c=colours)
         for j, (label, response) in enumerate(models.items()):
             Hm = np.asarray(response)[:, k, m]
-            colour = "C3" if len(models) == 1 else f"C{(j + 3) % 10}"
+            colour = "C3" if len(models) == 1 else f"C{j % 10}"  # the time-domain plots' colours
             axes[0, c].plot(f, 20 * np.log10(np.abs(Hm)), color=colour, lw=1.2, label=label)
             axes[1, c].plot(f, np.degrees(np.angle(Hm)), color=colour, lw=1.2)
         axes[2, c].plot(f, gamma, color="C2", lw=1.0)
