@@ -126,7 +126,7 @@ def plot_frequency_response(
         axes[2, c].set_xlabel("frequency [Hz]")
         for ax in axes[:, c]:
             ax.set_xscale("log")
-            ax.grid(alpha=0.3)
+            ax.grid(alpha=0.3, which="both")
     axes[0, 0].set_ylabel("magnitude [dB]")
     axes[1, 0].set_ylabel("phase [deg]")
     axes[2, 0].set_ylabel("partial coherence")
