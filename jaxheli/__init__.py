@@ -14,7 +14,7 @@ from .cost import fit_percent as fit_percent, metrics as metrics, paper_cost as 
 from .cost import pearson as pearson, rmse as rmse, tic as tic
 from . import distributed as distributed, gap as gap
 from .discretize import Discrete as Discrete, discretize as discretize
-from .evaluate import evaluate as evaluate, resolve_params as resolve_params
+from .evaluate import evaluate as evaluate, resolve_params as resolve_params, simulate_as_scored as simulate_as_scored
 from .excitation import Excitation as Excitation, doublet as doublet, multisine as multisine
 from .excitation import sweep as sweep, three_two_one_one as three_two_one_one
 from .flight import FlightData as FlightData, FlightDataError as FlightDataError

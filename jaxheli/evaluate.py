@@ -11,7 +11,7 @@ from ._types import Float
 from .cost import metrics
 from .flight import FlightData
 from .initial_state import estimate_x0
-from .model import N_PARAMS, PARAM_NAMES, TABLE2, params_array
+from .model import G_SI, N_PARAMS, PARAM_NAMES, TABLE2, params_array
 from .simulate import make_simulator
 
 NAMED_MODELS = {"table2": TABLE2}
@@ -84,3 +84,25 @@ def evaluate(
     settings["initial_state"] = x0 if isinstance(x0, str) else "given"
     out["simulation"] = settings
     return out
+
+
+def simulate_as_scored(
+    params: str | Path | np.ndarray | dict,
+    settings: dict,
+    flight: FlightData,
+    channels: tuple[str, ...] | list[str],
+    x0: str | np.ndarray = "estimate",
+) -> Float[np.ndarray, "N k"]:
+    """Outputs ``[N, k]`` for ``channels`` of ``params`` on ``flight``, simulated as an identification result
+    with ``settings`` was scored: its hold, g, segment and scored channels (``settings["outputs"]``, when
+    they include ``channels``, so the simulator compiled for the scores serves plots too), from ``x0`` as in
+    :func:`evaluate`."""
+    theta = resolve_params(params)
+    scored = tuple(c for c in settings.get("outputs") or () if c in flight.output_names)
+    names = scored if set(channels) <= set(scored) else tuple(channels)
+    opts = {"outputs": names, "hold": settings.get("hold", "zoh"), "g": settings.get("g", G_SI),
+            "segment": settings.get("segment")}
+    if isinstance(x0, str) and x0 == "estimate":
+        x0 = estimate_x0(theta, flight, **opts)
+    y = np.asarray(make_simulator(flight, x0=x0, **opts)(theta))
+    return y[:, [names.index(c) for c in channels]]

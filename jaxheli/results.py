@@ -9,13 +9,11 @@ from pathlib import Path
 import numpy as np
 
 from .flight import FlightData
-from .evaluate import default_outputs
+from .evaluate import default_outputs, simulate_as_scored
 from .identify import IdentificationResult
-from .initial_state import estimate_x0
 from .io.npz import save_npz
 from .model import PARAM_NAMES
 from .plots import plot_convergence, plot_time_domain
-from .simulate import make_simulator
 
 PLOT_CHANNELS: tuple[str, ...] = ("p", "q", "phi", "theta")
 """Channels of the time-domain verification plots (the paper's Figs. 4-6)."""
@@ -26,15 +24,10 @@ them, and ``jaxheli report`` reads them rather than the raw source files."""
 
 
 def _verification(result: IdentificationResult, flight: FlightData, x0, path: Path, title: str) -> Path:
-    """Plot ``PLOT_CHANNELS``, simulated with the channels the scores used (the same simulation, so the
-    same compiled simulator) and the initial state ``x0`` (``"estimate"``, ``"zero"`` or a state)."""
+    """Plot ``PLOT_CHANNELS`` as the result was scored on ``flight``, from ``x0`` (``"estimate"``, ``"zero"``)."""
     scored = tuple(c for c in result.settings["outputs"] if c in flight.output_names) or default_outputs(flight)
     chans = tuple(c for c in PLOT_CHANNELS if c in scored) or scored
-    opts = {"outputs": scored, "hold": result.settings["hold"], "g": result.settings["g"]}
-    if isinstance(x0, str) and x0 == "estimate":
-        x0 = estimate_x0(result.params, flight, **opts)
-    sim = make_simulator(flight, x0=x0, segment=result.settings["segment"], **opts)
-    y = np.asarray(sim(result.params))[:, [scored.index(c) for c in chans]]
+    y = simulate_as_scored(result.params, result.settings, flight, chans, x0)
     return plot_time_domain(flight.time, flight.select(chans).outputs, {result.method: y}, chans, path, title)
 
 

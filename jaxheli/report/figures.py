@@ -9,27 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .._types import Float
 from ..flight import FlightData
 from ..gap.frequency import FrequencyResponse
-from ..initial_state import estimate_x0
-from ..model import G_SI
 from ..plots import plot_convergence, plot_time_domain
-from ..simulate import make_simulator
 from .inputs import ResultSource
-
-
-def simulate_result(result: ResultSource, flight: FlightData, channels: Sequence[str]) -> Float[np.ndarray, "N k"]:
-    """Outputs ``[N, k]`` of ``result``'s parameters on ``flight`` for ``channels``, simulated with the result's
-    settings (hold, g, segment, scored channels) from a least-squares initial state, as
-    :func:`jaxheli.evaluate` scored it (so the simulator compiled for the scores serves the plots too)."""
-    s = result.settings
-    scored = tuple(c for c in s.get("outputs") or () if c in flight.output_names)
-    sim_channels = scored if set(channels) <= set(scored) else tuple(channels)
-    opts = {"outputs": sim_channels, "hold": s.get("hold", "zoh"), "g": s.get("g", G_SI), "segment": s.get("segment")}
-    x0 = estimate_x0(result.params, flight, **opts)
-    y = np.asarray(make_simulator(flight, x0=x0, **opts)(result.params))
-    return y[:, [sim_channels.index(c) for c in channels]]
 
 
 def time_domain_png(

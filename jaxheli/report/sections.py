@@ -12,11 +12,11 @@ from typing import Any
 import numpy as np
 
 from ..cost import metrics as channel_metrics
-from ..evaluate import default_outputs
+from ..evaluate import default_outputs, simulate_as_scored
 from ..flight import FlightData
 from ..model import G_SI, PARAM_NAMES, PINNED, STATE_UNITS
 from ..results import PLOT_CHANNELS
-from .figures import convergence_png, frequency_png, simulate_result, time_domain_png
+from .figures import convergence_png, frequency_png, time_domain_png
 from .html import Html, esc, json_view, note, num, png_figure, section, table, tag
 from .inputs import Diagnosis, ResultSource, recorded_sources
 
@@ -134,7 +134,7 @@ def verification(results: Sequence[ResultSource], flights: Sequence[FlightData])
     body: list[Any] = []
     for f in flights:
         chans = tuple(c for c in PLOT_CHANNELS if c in f.output_names) or f.output_names
-        sims = {r.label: simulate_result(r, f, chans) for r in results}
+        sims = {r.label: simulate_as_scored(r.params, r.settings, f, chans) for r in results}
         meas = f.select(chans).outputs
         scores = {label: channel_metrics(y, meas, chans) for label, y in sims.items()}
         rows = [[label, name, *(num(s[key][c], ".4f") for c in chans)]
