@@ -5,7 +5,7 @@ import os
 if os.environ.get("PYTEST_XDIST_WORKER"):
     # One busy thread per xdist worker: with `-n 2` on two cores, a worker that also spreads its XLA ops over
     # both cores only slows the other one down (the walkthrough notebook's kernel gets the same setting).
-    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {'--xla_cpu_multi_thread_eigen=false'}".strip()
+    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen=false").strip()
 
 import jax  # noqa: E402
 import pytest
