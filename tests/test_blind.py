@@ -59,7 +59,7 @@ def test_validation_flight_differs_from_training_flight():
 
 
 def test_small_blind_run_attributes_delay_and_clears_control():
-    records = run_blind([("input_delay", 0), ("none", 0)], duration=12.0, max_steps=15, batch=2)
+    records = run_blind([("input_delay", 0), ("none", 0)], duration=20.0, max_steps=15, batch=2)
     delay, control = records
     assert delay["top"] == "input_delay" and delay["correct"]
     assert delay["magnitude_error"] < 0.15

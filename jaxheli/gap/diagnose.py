@@ -3,11 +3,11 @@
 
 Composes the pieces of :mod:`jaxheli.gap`: the data-consistency findings of both flights
 (:func:`~jaxheli.gap.consistency.check`), where the base model misses the validation flight
-(:func:`~jaxheli.gap.localise_cli.localise_model`), and the candidate effects fitted on the training flight
+(:func:`~jaxheli.gap.localise_cli.localise_prediction`), and the candidate effects fitted on the training flight
 and ranked by their shrink of the validation gap (:func:`~jaxheli.gap.ranking.diagnose_effects`).
 
-Every gap here is the segment-wise predictor's (:mod:`jaxheli.gap.predictor`: restarts from the measured
-states every ``segment`` s, zero-order hold), so the localised residual, ``gap_before`` and the ranking's
+Every gap here is the segment-wise predictor's (:mod:`jaxheli.gap.predictor`: restarts from the
+Kalman-filtered state every ``segment`` s, zero-order hold), so the localised residual, ``gap_before`` and the ranking's
 base gap are one and the same number.
 """
 
@@ -32,8 +32,8 @@ from ..model import G_SI, MEASURABLE
 from . import effects as fx
 from .augmented import no_effect
 from .consistency import check
-from .localise_cli import localise_model
-from .predictor import Predictor, make_predictor
+from .localise_cli import localise_prediction
+from .predictor import TRACK, Predictor, make_predictor
 from .ranking import diagnose_effects
 
 _NOT_STATES = ("a", "b")
@@ -128,10 +128,9 @@ def diagnose(
     train, validate = train.select(names), validate.select(names)
     consistency = [{**f.to_json(), "flight": role} for role, flight in (("train", train), ("validate", validate))
                    for f in check(flight)]
-    sim = {"x0": "measured", "segment": segment, "g": g, "hold": "zoh"}
-    localisation, _ = localise_model(theta, validate, outputs=names, **sim)
+    localisation = _localise_base(theta, validate, segment, g)
     if localise_train:
-        localisation["train"] = localise_model(theta, train, outputs=names, **sim)[0]
+        localisation["train"] = _localise_base(theta, train, segment, g)
     ranked = diagnose_effects(theta, train, validate, list(effects), top=top, segment=segment, g=g, **options)
     shown = [ranked["ranking"][0]] + ([ranked["combination"]] if ranked["combination"] else [])
     gaps = np.asarray(nmse(predictions(theta, validate, shown, segment=segment, g=g), validate.outputs))
@@ -147,6 +146,14 @@ def diagnose(
         "gap_before": _gap_block(gaps[0], names),
         "gap_after": {"best": after[0], "combination": after[1] if len(after) > 1 else None},
     })
+
+
+def _localise_base(theta: Float[np.ndarray, "40"], flight: FlightData, segment: float, g: float) -> dict[str, Any]:
+    """Where the base model's segment-wise prediction misses ``flight`` (:func:`localise_prediction`)."""
+    base = predictions(theta, flight, [], segment=segment, g=g)[0]
+    simulation = {"predictor": "segment-wise, restarts from the Kalman-filtered state (jaxheli.gap.predictor)",
+                  "segment": segment, "track": TRACK, "g": g, "hold": "zoh"}
+    return localise_prediction(theta, flight, base, flight.output_names, simulation)
 
 
 def _gap_block(gap: np.ndarray, names: tuple[str, ...]) -> dict[str, Any]:

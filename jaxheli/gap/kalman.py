@@ -37,11 +37,15 @@ def riccati(
     return 0.5 * (P + P.T)
 
 
-def gust_filter(plant: Plant, noise_var: Float[Array, "k"]) -> tuple[Array, Array, Array]:
+def gust_filter(
+    plant: Plant, noise_var: Float[Array, "k"], track: float = 0.0
+) -> tuple[Array, Array, Array]:
     """``(F, G, K)``: augmented transition ``[x, wind]``, stick input and steady-state filter gain.
 
     ``plant``'s ``gust`` group gives sigma (m/s) and tau (s); ``noise_var`` is each output's measurement
-    noise variance. Every state carries a ``1e-12`` variance floor (harmless beside the noise).
+    noise variance. Each measured state carries process noise of variance ``track^2`` times its channel's
+    noise variance per sample (how closely the filter follows the measurements rather than the model),
+    every state a ``1e-12`` floor (harmless beside the noise).
     The update is ``z|k = z|k-1 + K (y - H z|k-1)`` on the output states.
     """
     sigma, tau = plant.group("gust")
@@ -50,7 +54,7 @@ def gust_filter(plant: Plant, noise_var: Float[Array, "k"]) -> tuple[Array, Arra
     F = jnp.block([[plant.Ad, plant.E], [jnp.zeros((m, n)), rho * jnp.eye(m)]])
     G = jnp.concatenate([plant.B, jnp.zeros((m, plant.B.shape[1]))], axis=0)
     H = jnp.concatenate([plant.C, jnp.zeros((plant.C.shape[0], m))], axis=1)
-    q = jnp.concatenate([jnp.full(n, _FLOOR), jnp.full(m, sigma**2 * (1.0 - rho**2) + _FLOOR)])
+    q = jnp.concatenate([track**2 * (plant.C.T @ noise_var) + _FLOOR, jnp.full(m, sigma**2 * (1.0 - rho**2) + _FLOOR)])
     R = jnp.diag(noise_var)
     P = riccati(F, H, jnp.diag(q), R)
     K = P @ H.T @ jnp.linalg.inv(H @ P @ H.T + R)

@@ -51,17 +51,39 @@ def localise_model(
     x0_used = estimate_x0(theta, flight, outputs=names, **sim_options) if estimate else x0
     sim = make_simulator(flight, outputs=names, x0=x0_used, **sim_options)
     simulated = np.asarray(sim(theta))
+    settings = sim.describe()
+    settings["initial_state"] = x0 if isinstance(x0, str) else "given"
+    report = localise_prediction(theta, flight, simulated, names, settings, min_coherence=min_coherence,
+                                 localise_options=localise_options)
+    return report, simulated
+
+
+def localise_prediction(
+    theta: np.ndarray,
+    flight: FlightData,
+    simulated: np.ndarray,
+    outputs: Sequence[str],
+    simulation: dict,
+    *,
+    min_coherence: float = 0.6,
+    localise_options: dict | None = None,
+) -> dict[str, object]:
+    """Localise the gap between ``flight`` and any prediction ``simulated[N, k]`` of ``theta`` on ``outputs``.
+
+    ``simulation`` describes how the prediction was made (stored as the report's ``simulation``; its ``g``,
+    m/s^2, also sets the model frequency response). Returns :func:`localise`'s keys plus
+    ``frequency_response`` (see :func:`localise_model`) and ``simulation``.
+    """
+    names = tuple(outputs)
     report = localise(flight, simulated, names, **(localise_options or {}))
-    estimate, model = frequency_comparison(theta, flight, names, sim.g)
+    estimate, model = frequency_comparison(theta, flight, names, simulation["g"])
     errors = mismatch(estimate, model, min_coherence=min_coherence)
     report["frequency_response"] = {
         f"{i}->{o}": {key: (None if not np.isfinite(v[k, m]) else float(v[k, m])) for key, v in errors.items()}
         for m, i in enumerate(INPUT_NAMES) for k, o in enumerate(names)
     }
-    settings = sim.describe()
-    settings["initial_state"] = x0 if isinstance(x0, str) else "given"
-    report["simulation"] = settings
-    return report, simulated
+    report["simulation"] = simulation
+    return report
 
 
 def write_localisation(report: dict, theta: np.ndarray, flight: FlightData, out: str | Path) -> list[Path]:
