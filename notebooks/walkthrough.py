@@ -244,7 +244,7 @@ display(Image(filename=str(OUT / best / "verification_validate.png")))
 # then fits candidate unmodelled effects (here: a stick-to-rotor delay and control saturation; `jaxheli
 # diagnose` tries all eight by default) on the *training* flight with the identified model held fixed, and ranks them by
 # how far they shrink the gap on the *validation* flight: extra parameters earn nothing unless they predict
-# new data. Each prediction restarts from the measured states every 2 s.
+# new data. Each prediction restarts every 2 s from the state a Kalman filter estimates from the sensors.
 
 # %%
 theta = results[best].params
