@@ -80,7 +80,7 @@ def test_injected_delay_is_diagnosed_and_reported(delayed):
 def test_gaps_recomputed_independently(delayed):
     train, validate, d, _ = delayed
     top = d["ranking"][0]
-    reference = reference_prediction(TABLE2, validate, segment=2.0)  # the base model, a numpy predictor
+    reference = reference_prediction(TABLE2, validate, segment=2.0, track=d["track"])  # base model, numpy predictor
     base = np.asarray(nmse(reference, validate.outputs))
     np.testing.assert_allclose([d["gap_before"]["channel"][c] for c in OUT], base, rtol=1e-6)
     np.testing.assert_allclose([d["localisation"]["channel"][c]["nmse"] for c in OUT], base, rtol=1e-6)
@@ -90,11 +90,11 @@ def test_gaps_recomputed_independently(delayed):
     for c in OUT:
         before, after = d["gap_before"]["channel"][c], d["gap_after"]["best"]["channel"][c]
         np.testing.assert_allclose(100 * (before - after) / before, top["shrink_by_channel"][c], rtol=1e-6, atol=1e-6)
-    y = predictions(TABLE2, validate, [top], segment=2.0)
+    y = predictions(TABLE2, validate, [top], segment=2.0, track=d["track"])
     np.testing.assert_allclose(y[0], reference, atol=1e-7 * np.abs(reference).max())
     truth = augmented.no_effect(OUT)
     truth[augmented.layout(OUT)["delay"].start + 1] = DELAY
-    oracle = make_predictor(validate, segment=2.0)(jnp.asarray(TABLE2), jnp.asarray(truth))
+    oracle = make_predictor(validate, segment=2.0, track=d["track"])(jnp.asarray(TABLE2), jnp.asarray(truth))
     worst = np.max(np.abs(y[1] - np.asarray(oracle)), axis=0) / np.abs(validate.outputs).max(axis=0)
     assert np.all(worst < 0.05), dict(zip(OUT, worst))
     assert d["gap_after"]["best"]["total"] < 1.1 * float(np.mean(nmse(oracle, validate.outputs)))

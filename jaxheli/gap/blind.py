@@ -33,7 +33,7 @@ from ..synth import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
 from . import effects as fx
 from .augmented import GYROS, layout, no_effect
 from .fit_effect import Fit, embed, fit_candidates, score
-from .predictor import Predictor, make_predictor
+from .predictor import Predictor, make_predictor, tune_track
 from .ranking import shrink_entries
 
 KINDS: tuple[str, ...] = fx.ALL + ("none",)
@@ -131,7 +131,8 @@ def run_blind(
     bar advances per batch and ``on_batch(records_so_far)`` runs after each, e.g. to save partial results.
     A record holds the injection, the verdict (``top``: best significant effect or ``"none"``), whether it
     is right, the fitted primary parameter of the true kind against its true value, the true kind's shrink
-    (%) and the oracle's, and the full ranking.
+    (%) and the oracle's, the restart filter's level tuned on the training flight (``track``) and the full
+    ranking.
     """
     outputs = DEFAULT_OUTPUTS
     injections = [sample_injection(kind, 7919 * seed + 101 * KINDS.index(kind), outputs, duration)
@@ -144,14 +145,15 @@ def run_blind(
         padded = chunk + [chunk[-1]] * (batch - len(chunk))
         flights = [blind_flights(injections[i], 7919 * trials[i][1] + KINDS.index(trials[i][0]), duration=duration,
                                  dt=dt) for i in padded]
-        train = _stack([make_predictor(t, segment=segment) for t, _ in flights])
-        validate = _stack([make_predictor(v, segment=segment) for _, v in flights])
+        tracks = [tune_track(make_predictor(t, segment=segment), theta) for t, _ in flights]
+        train = _stack([make_predictor(t, segment=segment, track=k) for (t, _), k in zip(flights, tracks)])
+        validate = _stack([make_predictor(v, segment=segment, track=k) for (_, v), k in zip(flights, tracks)])
         truth = jnp.asarray(np.stack([injections[i].eta for i in padded]))
         fits, gaps, segs = _fit_and_score(train, validate, truth, theta, base, index, start, max_steps)
         for j, i in enumerate(chunk):
             fit = jax.tree.map(lambda a: a[j], fits)
             records.append(_record(injections[i], trials[i][1], fit, np.asarray(gaps[j]), np.asarray(segs[j]),
-                                   min_shrink))
+                                   min_shrink) | {"track": tracks[j]})
         if on_batch is not None:
             on_batch(records)
     return records

@@ -76,13 +76,14 @@ def _predict(pred: Predictor, theta: Float[Array, "40"], etas: Float[Array, "C E
 
 def predictions(
     theta: Float[np.ndarray, "40"], flight: FlightData, entries: Sequence[dict[str, Any]], *,
-    segment: float = 2.0, g: float = G_SI,
+    segment: float = 2.0, g: float = G_SI, track: float = TRACK,
 ) -> Float[np.ndarray, "C+1 N k"]:
     """Predicted outputs of the base model (first) and of the base plus each ranking entry's fitted effect
-    on ``flight`` (all its channels), by the same segment-wise predictor the ranking scores with."""
+    on ``flight`` (all its channels), by the same segment-wise predictor the ranking scores with (restart
+    filter level ``track``: the diagnosis's ``track``)."""
     outputs = tuple(flight.output_names)
     etas = [no_effect(outputs)] + [effect_eta(e["effect"], e["params"], outputs) for e in entries]
-    pred = make_predictor(flight, segment=segment, g=g)
+    pred = make_predictor(flight, segment=segment, g=g, track=track)
     return np.asarray(_predict(pred, jnp.asarray(theta), jnp.asarray(np.stack(etas))))
 
 
@@ -102,12 +103,13 @@ def diagnose(
     """JSON-ready diagnosis of ``model`` (anything :func:`jaxheli.resolve_params` takes).
 
     Effects are fitted on ``train`` with the base model fixed and scored on ``validate``; ``segment`` (s) is
-    the restart interval of every prediction, ``options`` (``max_steps``, ``min_shrink``) go to
+    the restart interval of every prediction, ``options`` (``max_steps``, ``min_shrink``, ``track``) go to
     :func:`~jaxheli.gap.ranking.diagnose_effects`. ``outputs`` default to :func:`shared_outputs`.
 
     Returns ``model``, ``flights``, ``outputs``, ``consistency`` (findings of both flights, each with a
     ``flight`` key), ``localisation`` (validation flight; the training flight's under ``train``),
-    ``ranking`` (best first), ``combination``, ``verdict``, ``gap_before`` (base model, per channel and
+    ``ranking`` (best first), ``combination``, ``verdict``, ``track`` (the restart filter's level, tuned on
+    ``train`` unless ``options`` give it), ``gap_before`` (base model, per channel and
     ``total`` = channel mean) and ``gap_after`` (``best`` entry and ``combination``, same layout, or ``None``).
     """
     theta = resolve_params(model)
@@ -128,12 +130,14 @@ def diagnose(
     train, validate = train.select(names), validate.select(names)
     consistency = [{**f.to_json(), "flight": role} for role, flight in (("train", train), ("validate", validate))
                    for f in check(flight)]
-    localisation = _localise_base(theta, validate, segment, g)
-    if localise_train:
-        localisation["train"] = _localise_base(theta, train, segment, g)
     ranked = diagnose_effects(theta, train, validate, list(effects), top=top, segment=segment, g=g, **options)
+    track = ranked["track"]
+    localisation = _localise_base(theta, validate, segment, g, track)
+    if localise_train:
+        localisation["train"] = _localise_base(theta, train, segment, g, track)
     shown = [ranked["ranking"][0]] + ([ranked["combination"]] if ranked["combination"] else [])
-    gaps = np.asarray(nmse(predictions(theta, validate, shown, segment=segment, g=g), validate.outputs))
+    gaps = np.asarray(nmse(predictions(theta, validate, shown, segment=segment, g=g, track=track),
+                           validate.outputs))
     after = [{"effect": e["effect"], **_gap_block(gap, names)} for e, gap in zip(shown, gaps[1:])]
     return _json_ready({
         "model": model if isinstance(model, (str, Path)) else "given parameters",
@@ -148,11 +152,13 @@ def diagnose(
     })
 
 
-def _localise_base(theta: Float[np.ndarray, "40"], flight: FlightData, segment: float, g: float) -> dict[str, Any]:
+def _localise_base(
+    theta: Float[np.ndarray, "40"], flight: FlightData, segment: float, g: float, track: float,
+) -> dict[str, Any]:
     """Where the base model's segment-wise prediction misses ``flight`` (:func:`localise_prediction`)."""
-    base = predictions(theta, flight, [], segment=segment, g=g)[0]
+    base = predictions(theta, flight, [], segment=segment, g=g, track=track)[0]
     simulation = {"predictor": "segment-wise, restarts from the Kalman-filtered state (jaxheli.gap.predictor)",
-                  "segment": segment, "track": TRACK, "g": g, "hold": "zoh"}
+                  "segment": segment, "track": track, "g": g, "hold": "zoh"}
     return localise_prediction(theta, flight, base, flight.output_names, simulation)
 
 
@@ -198,7 +204,8 @@ def write_diagnosis(
     (out / "diagnosis.json").write_text(json.dumps(diagnosis, indent=1))
     (out / "consistency.json").write_text(json.dumps(diagnosis["consistency"], indent=1))
     shown = [e for e in (diagnosis["ranking"][0], diagnosis["combination"]) if e]
-    predicted = predictions(theta, flight, shown, segment=diagnosis["segment_s"], g=local["simulation"]["g"])
+    predicted = predictions(theta, flight, shown, segment=diagnosis["segment_s"], g=local["simulation"]["g"],
+                            track=diagnosis["track"])
     estimate, model = frequency_comparison(theta, flight, names, local["simulation"]["g"])
     return [
         out / "diagnosis.json",
@@ -254,6 +261,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument("--effects", default=",".join(fx.ALL),
                    help=f"comma-separated candidates (default: {','.join(fx.ALL)})")
     p.add_argument("--segment", type=float, default=2.0, help="restart interval of the predictions, s (default 2)")
+    p.add_argument("--track", type=float, default=None,
+                   help="restart filter's process noise per sample, in measurement-noise stds (default: the level "
+                        "of 0.1-10 that suits the model best on the training flight)")
     p.add_argument("--top", type=int, default=3, help="significant effects fitted jointly (default 3)")
     p.add_argument("--g", type=float, default=G_SI, help="gravity, m/s^2 (default 9.81)")
     p.add_argument("--max-steps", type=int, default=40, help="Levenberg-Marquardt steps per candidate (default 40)")
@@ -300,10 +310,11 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     validate = prepare(_load_flight(args.validate), correct_data=args.correct)
     diagnosis = diagnose(
         args.model, train, validate, outputs=_outputs(args.outputs), effects=chosen, segment=args.segment,
-        top=args.top, g=args.g, max_steps=args.max_steps, min_shrink=args.min_shrink,
+        top=args.top, g=args.g, max_steps=args.max_steps, min_shrink=args.min_shrink, track=args.track,
     )
     print(f"diagnosis of {args.model}: trained on {train.source}, validated on {validate.source} "
-          f"(segment {args.segment:g} s; channels {','.join(diagnosis['outputs'])})")
+          f"(segment {args.segment:g} s, restart filter level {diagnosis['track']:g}; "
+          f"channels {','.join(diagnosis['outputs'])})")
     for line in ranking_table(diagnosis):
         print(line)
     print(f"verdict: {diagnosis['verdict']}")

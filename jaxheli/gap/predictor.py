@@ -6,8 +6,9 @@ same candidate plant estimates from the sensor readings up to the restart (measu
 through the candidate's sensor model, :meth:`Plant.unmeasure`). Restarting from raw readings instead
 injects their noise into every segment: on the blind check's flights that propagated noise was half of
 the truth model's residual and made fitted delays and rotor time constants wander by a factor 2-3. The
-filter follows the measurements with process noise ``track`` times the measurement noise per sample
-(:data:`TRACK`), so it still restarts near the flight when the model is poor. The process-noise
+filter follows the measurements with process noise ``track`` times the measurement noise per sample;
+the diagnosis tunes ``track`` on the training flight (:func:`tune_track`): low when the model is close,
+high when it is far from the flight (identified models of real flights), so restarts stay near the data. The process-noise
 candidate adds its gust states to the filter: the wind it estimates restarts with the states and then
 decays with the gust time constant inside the segment.
 """
@@ -20,9 +21,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, Float
+from ..cost import nmse
 from ..flight import FlightData
 from ..model import G_SI, N_STATES, output_indices
-from .augmented import GUST_STATES, make_plant
+from .augmented import GUST_STATES, make_plant, no_effect
 from .kalman import gust_filter
 
 
@@ -40,7 +42,7 @@ class Predictor(eqx.Module):
     outputs: tuple[str, ...] = eqx.field(static=True)
     g: float = eqx.field(static=True)
     max_delay: float = eqx.field(static=True)
-    track: float = eqx.field(static=True)
+    track: Float[Array, ""]
 
     def __call__(self, theta: Float[Array, "40"], eta: Float[Array, "E"]) -> Float[Array, "N k"]:
         plant = make_plant(theta, eta, self.dt, self.outputs, g=self.g, max_delay=self.max_delay)
@@ -89,6 +91,11 @@ TRACK = 0.1
 """Default process-noise level of the restart filter, as a fraction of each channel's measurement-noise
 standard deviation per sample (:func:`jaxheli.gap.kalman.gust_filter`'s ``track``)."""
 
+TRACKS: tuple[float, ...] = (0.1, 0.3, 1.0, 3.0, 10.0)
+"""Filter levels :func:`tune_track` chooses from: from trusting the model (0.1, right when the model is
+close: the blind check's base model) to following the sensors (10: a restart within a few per cent of the
+raw readings, right for a model far from the flight, as identified models of real flights are)."""
+
 
 def noise_variance(outputs: Float[np.ndarray, "N k"]) -> Float[np.ndarray, "k"]:
     """Measurement-noise variance per channel from second differences (white noise: ``var(d2 y) = 6 var``).
@@ -134,5 +141,24 @@ def make_predictor(
         outputs=tuple(flight.output_names),
         g=float(g),
         max_delay=float(max_delay),
-        track=float(track),
+        track=jnp.asarray(float(track)),
     )
+
+
+@eqx.filter_jit
+def _base_gaps(pred: Predictor, theta: Float[Array, "40"], base: Float[Array, "E"],
+               tracks: Float[Array, "T"]) -> Float[Array, "T"]:
+    def gap(track):
+        return jnp.mean(nmse(eqx.tree_at(lambda p: p.track, pred, track)(theta, base), pred.measured))
+
+    return jax.vmap(gap)(tracks)
+
+
+def tune_track(pred: Predictor, theta: Float[Array, "40"], tracks: tuple[float, ...] = TRACKS) -> float:
+    """The restart-filter level of ``tracks`` under which the base model (no effect) predicts ``pred``'s
+    flight best (smallest channel-mean normalised residual energy): the filter is tuned to how far the
+    model is from the flight, on the training flight only, and then held for every candidate and flight."""
+    gaps = np.asarray(_base_gaps(pred, jnp.asarray(theta), jnp.asarray(no_effect(pred.outputs)),
+                                 jnp.asarray(tracks, dtype=float)))
+    gaps = np.where(np.isfinite(gaps), gaps, np.inf)
+    return float(tracks[int(np.argmin(gaps))])

@@ -30,7 +30,7 @@ from ..model import G_SI
 from . import effects as fx
 from .augmented import no_effect
 from .fit_effect import Fit, embed, fit_candidates, score
-from .predictor import Predictor, make_predictor
+from .predictor import Predictor, make_predictor, tune_track
 
 
 def shrink_entries(
@@ -107,14 +107,16 @@ def rank_effects(
     max_steps: int = 40,
     min_shrink: float = 3.0,
     shape: tuple[int, int] | None = None,
+    track: float | None = None,
 ) -> list[dict[str, Any]]:
     """Fit each effect on ``train`` (base ``theta`` fixed), score on ``validate``; ranking entries best first.
 
-    ``segment`` (s) is the predictor's restart interval; ``min_shrink`` (%) the significance
+    ``segment`` (s) is the predictor's restart interval and ``track`` its restart filter's level (``None``:
+    :func:`~jaxheli.gap.predictor.tune_track` on ``train``); ``min_shrink`` (%) the significance
     floor (see the module docstring); ``shape`` pads the batch of fits (:func:`~jaxheli.gap.effects.
     candidate_arrays`). Both flights must carry the same output channels.
     """
-    train_pred, validate_pred = _predictors(train, validate, segment, g)
+    train_pred, validate_pred = _predictors(base_theta, train, validate, segment, g, track)
     return _evaluate(train_pred, validate_pred, base_theta, list(effects), False, max_steps, min_shrink, shape=shape)
 
 
@@ -130,13 +132,14 @@ def combine_effects(
     min_shrink: float = 3.0,
     ranking: list[dict[str, Any]] | None = None,
     shape: tuple[int, int] | None = None,
+    track: float | None = None,
 ) -> dict[str, Any]:
     """The effects fitted jointly, one ranking entry named ``"a+b+..."``; with ``ranking`` (entries of
-    :func:`rank_effects` for these effects) the joint fit starts from each effect's own fit; ``shape`` pads the
-    fit as :func:`rank_effects` does."""
+    :func:`rank_effects` for these effects) the joint fit starts from each effect's own fit; ``shape`` and
+    ``track`` as in :func:`rank_effects`."""
     if not effects:
         raise ValueError("combine_effects: name at least one effect")
-    train_pred, validate_pred = _predictors(train, validate, segment, g)
+    train_pred, validate_pred = _predictors(base_theta, train, validate, segment, g, track)
     warm = None
     if ranking is not None:
         fitted = {e["effect"]: e["params"] for e in ranking}
@@ -149,16 +152,19 @@ def diagnose_effects(
     base_theta: Float[ArrayLike, "40"], train: FlightData, validate: FlightData,
     effects: tuple[str, ...] | list[str] = fx.ALL, *, top: int = 3, **options,
 ) -> dict[str, Any]:
-    """``{"ranking", "combination", "verdict"}``: the ranking, the joint fit of the (up to ``top``)
-    significant effects (``None`` unless two or more), and a sentence. With ``top > 1`` the single fits are
-    padded to the joint fit's width (:func:`~jaxheli.gap.effects.joint_shape`), so both run through one
-    compiled solver."""
+    """``{"ranking", "combination", "verdict", "track"}``: the ranking, the joint fit of the (up to ``top``)
+    significant effects (``None`` unless two or more), a sentence, and the restart filter's level both used
+    (tuned on ``train`` unless ``options`` give ``track``). With ``top > 1`` the single fits are padded to
+    the joint fit's width (:func:`~jaxheli.gap.effects.joint_shape`), so both run through one compiled
+    solver."""
     shape = fx.joint_shape(effects, train.output_names, top) if top > 1 else None
+    options["track"] = _track(base_theta, train, options.get("segment", 2.0), options.get("g", G_SI),
+                              options.get("track"))
     ranking = rank_effects(base_theta, train, validate, effects, shape=shape, **options)
     chosen = [e["effect"] for e in ranking if e["significant"]][:top]
     combination = (combine_effects(base_theta, train, validate, chosen, ranking=ranking, shape=shape, **options)
                    if len(chosen) > 1 else None)
-    return {"ranking": ranking, "combination": combination, "verdict": verdict(ranking)}
+    return {"ranking": ranking, "combination": combination, "verdict": verdict(ranking), "track": options["track"]}
 
 
 def verdict(ranking: list[dict[str, Any]]) -> str:
@@ -170,8 +176,18 @@ def verdict(ranking: list[dict[str, Any]]) -> str:
     return f"{e['effect']} ({e['summary']}): gap shrinks {e['shrink_pct']:.1f} % on the validation flight"
 
 
-def _predictors(train: FlightData, validate: FlightData, segment: float, g: float) -> tuple[Predictor, Predictor]:
+def _predictors(
+    theta: Float[ArrayLike, "40"], train: FlightData, validate: FlightData, segment: float, g: float,
+    track: float | None,
+) -> tuple[Predictor, Predictor]:
     if train.output_names != validate.output_names:
         raise ValueError(f"{validate.source}: output channels {validate.output_names} differ from the training "
                          f"flight's {train.output_names} ({train.source})")
-    return make_predictor(train, segment=segment, g=g), make_predictor(validate, segment=segment, g=g)
+    track = _track(theta, train, segment, g, track)
+    return make_predictor(train, segment=segment, g=g, track=track), make_predictor(validate, segment=segment, g=g,
+                                                                                   track=track)
+
+
+def _track(theta: Float[ArrayLike, "40"], train: FlightData, segment: float, g: float, track: float | None) -> float:
+    """``track``, or when ``None`` the level :func:`~jaxheli.gap.predictor.tune_track` picks on ``train``."""
+    return tune_track(make_predictor(train, segment=segment, g=g), theta) if track is None else float(track)
