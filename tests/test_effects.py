@@ -191,3 +191,22 @@ def test_fits_outside_the_physical_range_are_never_significant():
     assert not implausible["significant"] and not implausible["plausible"]
     assert "outside the physical range: delay_lat 16 s > 0.5 s" in implausible["summary"]
     assert plausible["significant"] and plausible["plausible"]
+
+
+def test_a_shrink_from_parameters_within_noise_of_no_effect_is_not_significant():
+    """A "2 +- 3 ms delay" that shrinks the held-out gap has absorbed model error; 80 +- 5 ms is evidence."""
+    assert effects.evidence("input_delay", OUT, np.array([0.002, 0.0, -0.004, 0.0]), np.full(4, 0.003)) == pytest.approx(4 / 3)
+    # time constants shape an effect but are no evidence of it: a rotor gain of 0 is no coupling
+    assert effects.evidence("rotor_speed_coupling", OUT, np.array([0.0, 2.5]), np.array([0.1, 0.01])) == 0.0
+    assert effects.evidence("process_noise", OUT, np.array([-0.6, 1.0]), np.array([0.2, 0.0])) == pytest.approx(3.0)
+    k = 2 * len(OUT)
+    z = np.zeros((2, k))
+    z[0, :4], z[1, :4] = [0.002, 0.0, 0.0, 0.0], [0.08, 0.0, 0.0, 0.0]
+    fit = Fit(z=z, stderr=np.full((2, k), 0.005), rss=np.ones(2), steps=np.ones(2, int), converged=np.ones(2, bool))
+    gap_base = np.full(len(OUT), 0.2)
+    weak, strong = shrink_entries(["input_delay", "input_delay"], OUT, fit, gap_base,
+                                  np.stack([0.9 * gap_base, 0.91 * gap_base]), np.ones(4), np.ones((2, 4)), 3.0)
+    assert weak["params"]["delay_lat"]["value"] == 0.002 and weak["evidence_z"] == pytest.approx(0.4)
+    assert weak["shrink_pct"] > strong["shrink_pct"] > 3.0
+    assert strong["significant"] and not weak["significant"] and strong["evidence_z"] == pytest.approx(16.0)
+    assert verdict([weak, strong]).startswith("input_delay (lat input delay delay 80 +- 5 ms)")

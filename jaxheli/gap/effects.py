@@ -39,7 +39,8 @@ _UNITS = {"u": "m/s", "v": "m/s", "w": "m/s", "p": "rad/s", "q": "rad/s", "r": "
 @dataclasses.dataclass(frozen=True)
 class Param:
     """One effect parameter: ``eta[slot]``; ``positive`` ones act through ``|eta|`` and are reported so;
-    ``bound`` is the largest physically plausible magnitude (units of ``unit``)."""
+    ``bound`` is the largest physically plausible magnitude (units of ``unit``); a ``shape`` parameter (a
+    time constant) only shapes an effect whose size the others set, so it is never evidence of it."""
 
     slot: int
     name: str
@@ -48,6 +49,7 @@ class Param:
     start: float
     positive: bool
     bound: float = float("inf")
+    shape: bool = False
 
 
 def params(effect: str, outputs: tuple[str, ...]) -> tuple[Param, ...]:
@@ -70,10 +72,10 @@ def params(effect: str, outputs: tuple[str, ...]) -> tuple[Param, ...]:
                 Param(at("drag", 1), "Yvv", "1/m", "v", 0.0, False, 10.0))
     if effect == "rotor_speed_coupling":
         return (Param(at("rotor", 0), "rotor_gain", "rad/s^2 per stick", "col->r", 0.1, False, 50.0),
-                Param(at("rotor", 1), "rotor_tau", "s", "col->r", 0.5, True, 3.0))
+                Param(at("rotor", 1), "rotor_tau", "s", "col->r", 0.5, True, 3.0, shape=True))
     if effect == "process_noise":
         return (Param(at("gust", 0), "gust_std", "m/s", "u,v,w", 0.3, True, 5.0),
-                Param(at("gust", 1), "gust_tau", "s", "u,v,w", 1.0, True, 10.0))
+                Param(at("gust", 1), "gust_tau", "s", "u,v,w", 1.0, True, 10.0, shape=True))
     if effect == "sensor_misalignment":
         return (Param(at("mis", 0), "yaw_misalignment", "rad", "u-v,p-q,phi-theta", 0.0, False, 0.35),
                 *(Param(at("mis", 1 + i), f"scale_{c}", "fraction", c, 0.0, False, 0.5) for i, c in enumerate(GYROS)
@@ -143,6 +145,18 @@ def implausible(effect: str, outputs: tuple[str, ...], value: np.ndarray) -> lis
     value = np.abs(np.asarray(value, dtype=np.float64)[: len(ps)])
     return [f"{p.name} {v:.3g} {p.unit} > {p.bound:g} {p.unit}" for p, v in zip(ps, value)
             if not np.isfinite(v) or v > p.bound]
+
+
+def evidence(effect: str, outputs: tuple[str, ...], value: np.ndarray, stderr: np.ndarray) -> float:
+    """The fitted effect's distance from no effect in standard errors: the largest ``|value - neutral| /
+    stderr`` over its size parameters (``shape`` ones excluded; 0 when no standard error is positive)."""
+    ps = params(effect, outputs)
+    value = np.asarray(value, dtype=np.float64)[: len(ps)]
+    stderr = np.asarray(stderr, dtype=np.float64)[: len(ps)]
+    shown = np.where([p.positive for p in ps], np.abs(value), value)
+    neutral = no_effect(outputs)[[p.slot for p in ps]]
+    z = [abs(v - n) / s for p, v, n, s in zip(ps, shown, neutral, stderr) if not p.shape and s > 0 and np.isfinite(s)]
+    return float(max(z, default=0.0))
 
 
 def _phrase(effect: str, p: Param, value: float, stderr: float) -> str:

@@ -7,7 +7,8 @@ largest shrink any candidate reached on the effect-free flights of the blind che
 (``benchmarks/blind_diagnosis.py``), where a useless effect fitted to noise shrinks the held-out gap by
 at most about 1 % and usually makes it worse. A candidate whose fitted parameters leave their physically
 plausible range (:func:`jaxheli.gap.effects.implausible`, e.g. a 16 s "input delay") is never significant:
-it shrinks the gap by absorbing something else. When none is, the verdict is "no significant effect".
+it shrinks the gap by absorbing something else; nor is one whose fitted size lies within two standard
+errors of no effect (:data:`MIN_Z`). When none is, the verdict is "no significant effect".
 
 Each entry also carries ``p_value``, a one-sided t-test over 0.5 s validation windows of the log ratio of
 base to candidate residual energy (:func:`~jaxheli.gap.predictor.make_predictor`), as a second opinion.
@@ -32,6 +33,12 @@ from .augmented import no_effect
 from .fit_effect import Fit, embed, fit_candidates, score
 from .predictor import Predictor, make_predictor, tune_track
 
+MIN_Z = 2.0
+"""Smallest distance of a significant effect from no effect, in standard errors of its fitted size
+(:func:`~jaxheli.gap.effects.evidence`): a shrink bought by parameters indistinguishable from zero (a
+"2 +- 3 ms delay") is model error the fit absorbed, not the effect. Every correct attribution of the blind
+check stands at 2.9 standard errors or more."""
+
 
 def shrink_entries(
     names: list[str], outputs: tuple[str, ...], fit: Fit, gap_base: np.ndarray,
@@ -47,7 +54,7 @@ def shrink_entries(
         parts = name.split("+")
         value = np.asarray(fit.z[c])
         stderr = np.asarray(fit.stderr[c])
-        params, where, sentence, outside, offset = {}, [], [], [], 0
+        params, where, sentence, outside, offset, z = {}, [], [], [], 0, 0.0
         for part in parts:
             n = len(fx.params(part, outputs))
             p, w, s = fx.describe(part, outputs, value[offset:offset + n], stderr[offset:offset + n])
@@ -55,6 +62,7 @@ def shrink_entries(
             where += w
             sentence.append(s)
             outside += fx.implausible(part, outputs, value[offset:offset + n])
+            z = max(z, fx.evidence(part, outputs, value[offset:offset + n], stderr[offset:offset + n]))
             offset += n
         if outside:
             sentence.append("outside the physical range: " + ", ".join(outside))
@@ -67,8 +75,9 @@ def shrink_entries(
             "params": params,
             "shrink_pct": shrink,
             "shrink_by_channel": {ch: 100.0 * float((gb - g) / gb) for ch, gb, g in zip(outputs, gap_base, gaps[c])},
-            "significant": bool(shrink >= min_shrink and not outside),
+            "significant": bool(shrink >= min_shrink and not outside and z >= MIN_Z),
             "plausible": not outside,
+            "evidence_z": z,
             "p_value": p_value,
             "gap_base": total_base,
             "gap": float(np.mean(gaps[c])),
