@@ -8,9 +8,9 @@ injects their noise into every segment: on the blind check's flights that propag
 the truth model's residual and made fitted delays and rotor time constants wander by a factor 2-3. The
 filter follows the measurements with process noise ``track`` times the measurement noise per sample;
 the diagnosis tunes ``track`` on the training flight (:func:`tune_track`): low when the model is close,
-high when it is far from the flight (identified models of real flights), so restarts stay near the data. The process-noise
-candidate adds its gust states to the filter: the wind it estimates restarts with the states and then
-decays with the gust time constant inside the segment.
+high when it is far from the flight (identified models of real flights), so restarts stay near the data.
+The process-noise candidate adds its gust states to the filter: the wind it estimates restarts with the
+states and then decays with the gust time constant inside the segment.
 """
 
 from __future__ import annotations
@@ -46,9 +46,9 @@ class Predictor(eqx.Module):
 
     def __call__(self, theta: Float[Array, "40"], eta: Float[Array, "E"]) -> Float[Array, "N k"]:
         plant = make_plant(theta, eta, self.dt, self.outputs, g=self.g, max_delay=self.max_delay)
-        _, _, K = gust_filter(plant, self.noise_var, self.track)
+        F, _, K = gust_filter(plant, self.noise_var, self.track)
         idx = jnp.asarray(output_indices(self.outputs))
-        rho = jnp.exp(-self.dt / (jnp.abs(plant.group("gust")[1]) + 1e-6))
+        rho = F[-1, -1]
         states = plant.unmeasure(self.measured, self.time)
         x0 = jnp.zeros(N_STATES).at[idx].set(states[0])
         history, servo, rotor = plant.init_actuators()
