@@ -120,6 +120,26 @@ def test_riccati_matches_scipy_and_gain_vanishes_without_gusts():
     assert np.max(np.abs(np.asarray(gust_filter(quiet, var)[2])[13:])) < 1e-3
 
 
+def test_process_noise_cut_lowers_the_filters_white_state_noise():
+    """A cut ``c`` of the white state noise is the filter of level ``track e^-|c|``; no cut is the base filter."""
+    var = jnp.asarray([2e-3, 2e-3, 2e-4, 2e-4, 3e-5, 3e-5, 2e-3, 2e-4])
+    gusty = dict(gust=(0, 0.5))
+
+    def gain(track, cut):
+        eta = _eta(**gusty)
+        eta[LAY["gust"].start + 2] = cut
+        return np.asarray(gust_filter(augmented.make_plant(jnp.asarray(TABLE2), jnp.asarray(eta), DT, OUT), var,
+                                      track)[2])
+
+    np.testing.assert_allclose(gain(1.0, np.log(10.0)), gain(0.1, 0.0), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(gain(1.0, -np.log(10.0)), gain(0.1, 0.0), rtol=1e-9, atol=1e-12)
+    assert not np.allclose(gain(1.0, 0.0), gain(0.1, 0.0), rtol=1e-3)
+    assert augmented.no_effect(OUT)[LAY["gust"].start + 2] == 0.0
+    cut = effects.params("process_noise", OUT)[2]
+    assert (cut.name, cut.positive, cut.shape, cut.start) == ("state_noise_cut", True, True, 1.0)
+    assert not effects.implausible("process_noise", OUT, np.array([0.5, 1.0, 40.0]))
+
+
 def test_noise_variance_of_white_noise():
     rng = np.random.default_rng(2)
     t = np.arange(20000) * 0.01
@@ -198,7 +218,8 @@ def test_a_shrink_from_parameters_within_noise_of_no_effect_is_not_significant()
     assert effects.evidence("input_delay", OUT, np.array([0.002, 0.0, -0.004, 0.0]), np.full(4, 0.003)) == pytest.approx(4 / 3)
     # time constants shape an effect but are no evidence of it: a rotor gain of 0 is no coupling
     assert effects.evidence("rotor_speed_coupling", OUT, np.array([0.0, 2.5]), np.array([0.1, 0.01])) == 0.0
-    assert effects.evidence("process_noise", OUT, np.array([-0.6, 1.0]), np.array([0.2, 0.0])) == pytest.approx(3.0)
+    # nor is the process-noise candidate's cut of the filter's white state noise
+    assert effects.evidence("process_noise", OUT, np.array([-0.6, 1.0, 4.0]), np.array([0.2, 0.0, 0.1])) == pytest.approx(3.0)
     k = 2 * len(OUT)
     z = np.zeros((2, k))
     z[0, :4], z[1, :4] = [0.002, 0.0, 0.0, 0.0], [0.08, 0.0, 0.0, 0.0]

@@ -42,11 +42,13 @@ def layout(outputs: tuple[str, ...]) -> dict[str, slice]:
     """Slices of ``eta`` per parameter group for a flight with output channels ``outputs``.
 
     ``delay[4]`` s, ``lag[4]`` s (lat lon ped col); ``sat[4]`` 1/stick^2; ``drag[2]`` ``Xuu, Yvv`` 1/m;
-    ``rotor[2]`` yaw gain rad/s^2 per collective stick and time constant s; ``gust[2]`` std (m/s) and
-    correlation time (s); ``mis[4]`` yaw misalignment rad and p, q, r scale-factor errors (fraction);
-    ``bias[k]`` and ``drift[k]`` (channel units, per s).
+    ``rotor[2]`` yaw gain rad/s^2 per collective stick and time constant s; ``gust[3]`` std (m/s),
+    correlation time (s) and the cut of the restart filter's white state noise (``track`` to
+    ``track e^-|cut|``; the plant never uses it, :func:`jaxheli.gap.kalman.gust_filter` does); ``mis[4]``
+    yaw misalignment rad and p, q, r scale-factor errors (fraction); ``bias[k]`` and ``drift[k]`` (channel
+    units, per s).
     """
-    sizes = (("delay", 4), ("lag", 4), ("sat", 4), ("drag", 2), ("rotor", 2), ("gust", 2), ("mis", 4),
+    sizes = (("delay", 4), ("lag", 4), ("sat", 4), ("drag", 2), ("rotor", 2), ("gust", 3), ("mis", 4),
              ("bias", len(outputs)), ("drift", len(outputs)))
     out, start = {}, 0
     for name, size in sizes:

@@ -10,7 +10,11 @@ The plausible ranges, generous on purpose (several times what the blind check in
 - input delay and servo lag up to 0.5 s (servo and transport delays are 20-150 ms, rotor lags ~0.1 s);
 - saturation up to 100 per stick^2, i.e. a limit no tighter than 0.1 of full stick;
 - quadratic drag up to 10 1/m; rotor-speed yaw gain up to 50 rad/s^2 per stick, its time constant 3 s;
-- gust intensity up to 5 m/s, gust correlation time up to 10 s;
+- gust intensity up to 5 m/s, gust correlation time up to 10 s; with them the restart filter's white
+  state noise is cut by a fitted factor ``exp(-|state_noise_cut|)``, without limit (the filter-error method
+  estimates the whole process-noise model: once the gusts explain the wind, the filter need not follow the
+  sensors as closely as at the base model's tuned level, and the truth of a gusty flight has no white state
+  noise at all);
 - yaw mounting misalignment up to 0.35 rad (20 deg), gyro scale errors up to 50 %;
 - biases and drifts: no limit (they are in the channel's own units).
 
@@ -75,7 +79,8 @@ def params(effect: str, outputs: tuple[str, ...]) -> tuple[Param, ...]:
                 Param(at("rotor", 1), "rotor_tau", "s", "col->r", 0.5, True, 3.0, shape=True))
     if effect == "process_noise":
         return (Param(at("gust", 0), "gust_std", "m/s", "u,v,w", 0.3, True, 5.0),
-                Param(at("gust", 1), "gust_tau", "s", "u,v,w", 1.0, True, 10.0, shape=True))
+                Param(at("gust", 1), "gust_tau", "s", "u,v,w", 1.0, True, 10.0, shape=True),
+                Param(at("gust", 2), "state_noise_cut", "ln", "u,v,w", 1.0, True, shape=True))
     if effect == "sensor_misalignment":
         return (Param(at("mis", 0), "yaw_misalignment", "rad", "u-v,p-q,phi-theta", 0.0, False, 0.35),
                 *(Param(at("mis", 1 + i), f"scale_{c}", "fraction", c, 0.0, False, 0.5) for i, c in enumerate(GYROS)

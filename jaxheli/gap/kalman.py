@@ -42,13 +42,15 @@ def gust_filter(
 ) -> tuple[Array, Array, Array]:
     """``(F, G, K)``: augmented transition ``[x, wind]``, stick input and steady-state filter gain.
 
-    ``plant``'s ``gust`` group gives sigma (m/s) and tau (s); ``noise_var`` is each output's measurement
-    noise variance. Each measured state carries process noise of variance ``track^2`` times its channel's
-    noise variance per sample (how closely the filter follows the measurements rather than the model),
-    every state a ``1e-12`` floor (harmless beside the noise).
+    ``plant``'s ``gust`` group gives sigma (m/s), tau (s) and a cut ``c`` of ``track`` (to ``track e^-|c|``);
+    ``noise_var`` is each output's measurement noise variance. Each measured state carries process noise of
+    variance ``track^2`` times its channel's noise variance per sample (how closely the filter
+    follows the measurements rather than the model), every state a ``1e-12`` floor (harmless beside the
+    noise).
     The update is ``z|k = z|k-1 + K (y - H z|k-1)`` on the output states.
     """
-    sigma, tau = plant.group("gust")
+    sigma, tau, cut = plant.group("gust")
+    track = track * jnp.exp(-jnp.abs(cut))
     rho = jnp.exp(-plant.dt / (jnp.abs(tau) + 1e-6))
     n, m = plant.Ad.shape[0], len(GUST_STATES)
     F = jnp.block([[plant.Ad, plant.E], [jnp.zeros((m, n)), rho * jnp.eye(m)]])
