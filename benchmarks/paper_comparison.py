@@ -36,11 +36,11 @@ import numpy as np
 
 import jaxheli
 from jaxheli.cost import pearson, tic
-from jaxheli.data_paths import data_file
+from jaxheli.io.paths import data_file
 from jaxheli.gap.consistency import check, correct
 from jaxheli.identify import identify, validation_block
 from jaxheli.model import PARAM_NAMES
-from jaxheli.preprocess import lowpass, trim
+from jaxheli.data.preprocess import lowpass, trim
 from jaxheli.results import save_result
 
 CHANNELS = ("p", "q", "phi", "theta")

@@ -26,10 +26,10 @@ from pathlib import Path
 import jax
 
 import jaxheli
-from jaxheli.data_paths import data_dir, data_file
+from jaxheli.io.paths import data_dir, data_file
 from jaxheli.gap.consistency import check
 from jaxheli.gap.diagnose import diagnose, prepare, ranking_table, write_diagnosis
-from jaxheli.preprocess import split
+from jaxheli.data.preprocess import split
 from jaxheli.results import save_result
 
 

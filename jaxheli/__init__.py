@@ -1,7 +1,7 @@
 """jaxheli: JAX-accelerated, differentiable system identification of small unmanned helicopters.
 
 Mettler's 13-state hover model (:mod:`jaxheli.model`), a batched ZOH/FOH simulator
-(:mod:`jaxheli.simulate`), the paper's Pearson cost and amplitude metrics (:mod:`jaxheli.cost`),
+(:mod:`jaxheli.sim.simulate`), the paper's Pearson cost and amplitude metrics (:mod:`jaxheli.cost`),
 flight-data readers (:mod:`jaxheli.io`), piloted synthetic flights (:mod:`jaxheli.synth`), and the
 identification engines (:mod:`jaxheli.optim`, :func:`jaxheli.identify`).
 """
@@ -13,13 +13,13 @@ _configure_xla()
 from .cost import fit_percent as fit_percent, metrics as metrics, paper_cost as paper_cost
 from .cost import pearson as pearson, rmse as rmse, tic as tic
 from . import distributed as distributed, gap as gap
-from .discretize import Discrete as Discrete, discretize as discretize
+from .sim.discretize import Discrete as Discrete, discretize as discretize
 from .evaluate import evaluate as evaluate, resolve_params as resolve_params, simulate_as_scored as simulate_as_scored
-from .excitation import Excitation as Excitation, doublet as doublet, multisine as multisine
-from .excitation import sweep as sweep, three_two_one_one as three_two_one_one
-from .flight import FlightData as FlightData, FlightDataError as FlightDataError
+from .synth.excitation import Excitation as Excitation, doublet as doublet, multisine as multisine
+from .synth.excitation import sweep as sweep, three_two_one_one as three_two_one_one
+from .data.flight import FlightData as FlightData, FlightDataError as FlightDataError
 from .identify import IdentificationResult as IdentificationResult, identify as identify
-from .initial_state import estimate_x0 as estimate_x0
+from .sim.initial_state import estimate_x0 as estimate_x0
 from .io import DEFAULT_PX4 as DEFAULT_PX4, DEFAULT_ULOG as DEFAULT_ULOG, load as load, load_ulog as load_ulog
 from .io import save_csv as save_csv, save_npz as save_npz
 from .model import (
@@ -42,12 +42,12 @@ from .model import (
 from .optim import GA as GA, IWO as IWO, minimize as minimize, minimize_trials as minimize_trials
 from .distributed import minimize_trials_distributed as minimize_trials_distributed
 from .optim import pem as pem, polish as polish, standard_errors as standard_errors
-from .population import population_cost as population_cost
-from .preprocess import detrend as detrend, from_samples as from_samples, lowpass as lowpass
-from .preprocess import resample as resample, split as split, trim as trim
+from .sim.population import population_cost as population_cost
+from .data.preprocess import detrend as detrend, from_samples as from_samples, lowpass as lowpass
+from .data.preprocess import resample as resample, split as split, trim as trim
 from .report import build_report as build_report, write_report as write_report
 from .results import save_result as save_result
-from .simulate import Simulator as Simulator, make_simulator as make_simulator, simulate as simulate
-from .synth import Pilot as Pilot, default_flight as default_flight, piloted_flight as piloted_flight
+from .sim.simulate import Simulator as Simulator, make_simulator as make_simulator, simulate as simulate
+from .synth.piloted import Pilot as Pilot, default_flight as default_flight, piloted_flight as piloted_flight
 
 __version__ = "0.1.0"

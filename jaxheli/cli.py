@@ -21,7 +21,7 @@ DEFAULT_DATA = "default"
 
 def _load_flight(spec: str):
     from .io import load
-    from .synth import default_flight
+    from .synth.piloted import default_flight
 
     return default_flight() if spec == DEFAULT_DATA else load(spec)
 
@@ -99,7 +99,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
 def _cmd_synth(args: argparse.Namespace) -> int:
     from .io import save_csv, save_npz
-    from .synth import default_flight, piloted_flight
+    from .synth.piloted import default_flight, piloted_flight
 
     if args.duration is None and args.seed is None and args.gust == 0.0:
         flight = default_flight()

@@ -4,7 +4,7 @@ Every process runs the same script (SPMD): it calls :func:`initialize`, builds t
 function, and calls :func:`minimize_trials_distributed` with the same ``keys[K]``. Process ``i`` of ``P``
 runs a contiguous slice of the keys (sizes differ by at most one, so ``K`` need not divide by ``P``) as
 one vmapped :func:`~jaxheli.optim.run.minimize_trials` on its own devices (the cost function may still
-shard each population over them, :mod:`jaxheli.shard`); the results are then gathered to every process in
+shard each population over them, :mod:`jaxheli.sim.shard`); the results are then gathered to every process in
 key order, equal to ``minimize_trials(optimizer, cost_fn, keys)`` on a single process. Trials never talk
 to each other, so the only communication is that one gather at the end.
 
@@ -42,8 +42,8 @@ from .model import LOWER, UPPER
 from .optim._base import AbstractPopulationOptimizer, CostFn, raw_key
 from .optim.iwo import IWO
 from .optim.run import RunResult, minimize_trials
-from .population import simulator_cost
-from .simulate import Simulator, make_simulator
+from .sim.population import simulator_cost
+from .sim.simulate import Simulator, make_simulator
 
 ENV_COORDINATOR = "JAXHELI_COORDINATOR"
 ENV_NUM_PROCESSES = "JAXHELI_NUM_PROCESSES"

@@ -9,10 +9,10 @@ import numpy as np
 
 from ._types import Float
 from .cost import metrics
-from .flight import FlightData
-from .initial_state import estimate_x0
+from .data.flight import FlightData
+from .sim.initial_state import estimate_x0
 from .model import G_SI, N_PARAMS, PARAM_NAMES, TABLE2, params_array
-from .simulate import make_simulator
+from .sim.simulate import make_simulator
 
 NAMED_MODELS = {"table2": TABLE2}
 """Parameter sets a user can name instead of a file (SI units)."""

@@ -19,9 +19,9 @@ import numpy as np
 import scipy.stats
 
 from ._types import Array, Float
-from .population import simulator_cost
+from .sim.population import simulator_cost
 from .evaluate import default_outputs, evaluate
-from .flight import FlightData
+from .data.flight import FlightData
 from .model import G_SI, LOWER, PARAM_NAMES, UPPER
 from .optim.ga import GA
 from .optim.iwo import IWO
@@ -29,7 +29,7 @@ from .optim.pem import pem
 from .optim.polish import polish
 from .optim.run import minimize, minimize_trials
 from .optim.uncertainty import standard_errors
-from .simulate import Simulator, make_simulator
+from .sim.simulate import Simulator, make_simulator
 
 Method = Literal["iwo", "ga", "pem", "iwo+polish"]
 METHODS: tuple[str, ...] = ("iwo", "ga", "pem", "iwo+polish")
@@ -37,7 +37,7 @@ METHODS: tuple[str, ...] = ("iwo", "ga", "pem", "iwo+polish")
 
 class _PopulationCost(eqx.Module):
     """``thetas[P, 40] -> cost[P]`` on one flight, scored in ``dtype`` (the fastest kernel the simulator
-    has, :func:`jaxheli.population.simulator_cost`); a pytree, so the flight stays traced inside the scan."""
+    has, :func:`jaxheli.sim.population.simulator_cost`); a pytree, so the flight stays traced inside the scan."""
 
     sim: Simulator
     target: Float[Array, "N k"]

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .flight import FlightData
+from .data.flight import FlightData
 from .evaluate import default_outputs, simulate_as_scored
 from .identify import IdentificationResult
 from .io.npz import save_npz

@@ -44,8 +44,8 @@ import scipy.signal
 from IPython.display import Image, display
 
 import jaxheli
-from jaxheli.data_paths import data_file
-from jaxheli.excitation import Excitation
+from jaxheli.io.paths import data_file
+from jaxheli.synth.excitation import Excitation
 from jaxheli.gap import augmented, check, correct
 from jaxheli.gap.consistency import plot_kinematics
 from jaxheli.gap.diagnose import diagnose, ranking_table, write_diagnosis

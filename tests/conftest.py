@@ -13,7 +13,7 @@ import pytest
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_rank_promotion", "raise")
 
-from jaxheli.data_paths import data_dir  # noqa: E402
+from jaxheli.io.paths import data_dir  # noqa: E402
 
 REQUIRE_DATA = os.environ.get("JAXHELI_REQUIRE_DATA", "") not in ("", "0")
 

@@ -8,7 +8,7 @@ from jaxheli.benchmark.baseline import numpy_cost
 from jaxheli.benchmark.throughput import bench_flight, candidates, flops_per_candidate
 from jaxheli.cli import main
 from jaxheli.model import TABLE2
-from jaxheli.population import population_cost
+from jaxheli.sim.population import population_cost
 
 
 def test_numpy_baseline_is_the_same_cost():

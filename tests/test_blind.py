@@ -5,7 +5,7 @@ import pytest
 
 from jaxheli.gap import augmented
 from jaxheli.gap.blind import KINDS, blind_flights, markdown, run_blind, sample_injection, summarise
-from jaxheli.synth import DEFAULT_OUTPUTS
+from jaxheli.synth.piloted import DEFAULT_OUTPUTS
 
 LAY = augmented.layout(DEFAULT_OUTPUTS)
 

@@ -4,12 +4,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxheli.blocked import choose_block
-from jaxheli.flight import FlightData
+from jaxheli.sim.blocked import choose_block
+from jaxheli.data.flight import FlightData
 from jaxheli.model import LOWER, R50_G, R50_HOVER, TABLE2, UPPER, params_array
 from jaxheli.cost import paper_cost
-from jaxheli.population import population_cost, simulator_cost
-from jaxheli.simulate import _run, make_simulator
+from jaxheli.sim.population import population_cost, simulator_cost
+from jaxheli.sim.simulate import _run, make_simulator
 
 CHANNELS = ("u", "v", "p", "q", "phi", "theta", "a", "w")
 STABLE = params_array({"Zw": -0.8, "Xu": -0.3, "Yv": -0.9}, base=TABLE2)
@@ -130,10 +130,10 @@ os.environ["XLA_FLAGS"] = "--xla_force_host_platform_device_count=2"
 import jax
 jax.config.update("jax_enable_x64", True)
 import numpy as np
-from jaxheli.flight import FlightData
+from jaxheli.data.flight import FlightData
 from jaxheli.model import LOWER, UPPER
-from jaxheli.population import simulator_cost
-from jaxheli.simulate import make_simulator
+from jaxheli.sim.population import simulator_cost
+from jaxheli.sim.simulate import make_simulator
 assert jax.local_device_count() == 2
 rng = np.random.default_rng(0)
 t = np.arange(1203) * 0.01

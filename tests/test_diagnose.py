@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from jaxheli.cost import nmse
-from jaxheli.excitation import Excitation
+from jaxheli.synth.excitation import Excitation
 from jaxheli.gap import augmented, effects
 from jaxheli.gap.diagnose import add_parser, diagnose, effect_eta, predictions, shared_outputs
 from jaxheli.gap.predictor import make_predictor
 from jaxheli.io import save_npz
 from jaxheli.model import TABLE2
-from jaxheli.synth import DEFAULT_OUTPUTS, piloted_flight
+from jaxheli.synth.piloted import DEFAULT_OUTPUTS, piloted_flight
 from filtered_restart import reference_prediction
 
 OUT = DEFAULT_OUTPUTS

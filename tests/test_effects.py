@@ -8,7 +8,7 @@ import scipy.linalg
 import scipy.signal
 
 from jaxheli import make_simulator
-from jaxheli.excitation import Excitation
+from jaxheli.synth.excitation import Excitation
 from jaxheli.gap import augmented, effects
 from jaxheli.gap.kalman import gust_filter, riccati
 from jaxheli.cost import nmse
@@ -16,7 +16,7 @@ from jaxheli.gap.predictor import TRACKS, make_predictor, noise_variance, tune_t
 from jaxheli.gap.fit_effect import Fit
 from jaxheli.gap.ranking import rank_effects, shrink_entries, verdict
 from jaxheli.model import TABLE2
-from jaxheli.synth import DEFAULT_OUTPUTS, piloted_flight
+from jaxheli.synth.piloted import DEFAULT_OUTPUTS, piloted_flight
 from filtered_restart import reference_prediction
 
 OUT = DEFAULT_OUTPUTS

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from jaxheli.cli import main
-from jaxheli.excitation import Excitation
+from jaxheli.synth.excitation import Excitation
 from jaxheli.identify import identify, intervals95, validation_block
 from jaxheli.io import save_npz
 from jaxheli.model import LOWER, PARAM_NAMES, TABLE2, UPPER
-from jaxheli.synth import piloted_flight
+from jaxheli.synth.piloted import piloted_flight
 
 FREE = ("Xu", "Yv", "Lb", "Ma", "Zw", "Nr", "Alon", "Blat")
 """Parameters the population test frees (rotor-to-body moments, dampings, control power)."""

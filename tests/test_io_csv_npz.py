@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from jaxheli.flight import FlightData, FlightDataError
+from jaxheli.data.flight import FlightData, FlightDataError
 from jaxheli.io import load, load_csv, load_npz, save_csv, save_npz
 
 HEADER = "time,lat,lon,ped,col,p,q"

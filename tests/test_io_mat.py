@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from jaxheli.flight import FlightDataError
+from jaxheli.data.flight import FlightDataError
 from jaxheli.io import load, load_mat
 
 

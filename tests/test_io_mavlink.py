@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
-from jaxheli.flight import FlightDataError
+from jaxheli.data.flight import FlightDataError
 from jaxheli.io import DEFAULT_PX4, load, load_log
 
 ALL_OUTPUTS = ("u", "v", "p", "q", "phi", "theta", "w", "r")

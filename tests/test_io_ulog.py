@@ -9,8 +9,8 @@ from scipy.spatial.transform import Rotation
 from ulog_writer import RC_PARAMS, message, stick_to_pwm, ulog_bytes, write_flight_ulog
 
 from jaxheli import piloted_flight
-from jaxheli.excitation import Excitation
-from jaxheli.flight import FlightDataError
+from jaxheli.synth.excitation import Excitation
+from jaxheli.data.flight import FlightDataError
 from jaxheli.io import DEFAULT_ULOG, load, load_ulog
 
 ALL_OUTPUTS = ("u", "v", "p", "q", "phi", "theta", "w", "r")

@@ -9,14 +9,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxheli.flight import FlightData
+from jaxheli.data.flight import FlightData
 from jaxheli.model import PARAM_NAMES, TABLE2
 from jaxheli.optim._base import Candidates
 from jaxheli.optim.iwo import IWO, IWOState, _seed_counts
 from jaxheli.optim.run import minimize
 from problems import HI6, HOLEY, LO6, SHIFT, SPHERE, Rosenbrock
-from jaxheli.population import simulator_cost
-from jaxheli.simulate import make_simulator, simulate
+from jaxheli.sim.population import simulator_cost
+from jaxheli.sim.simulate import make_simulator, simulate
 
 # Rosenbrock in 8 dimensions with axes 2 and 5 pinned at the optimum's value 1; the box excludes the
 # local minimum near x0 = -1.

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from jaxheli.cost import pearson
-from jaxheli.excitation import multisine
-from jaxheli.flight import FlightData
+from jaxheli.synth.excitation import multisine
+from jaxheli.data.flight import FlightData
 from jaxheli.model import LOWER, PARAM_NAMES, PINNED, TABLE2, UPPER, params_array
 from jaxheli.optim._box import clip_unit, free_mask, from_unit, midpoint, to_unit
 from jaxheli.optim.pem import pem
-from jaxheli.simulate import simulate
+from jaxheli.sim.simulate import simulate
 
 OUTPUTS = ("u", "v", "p", "q", "phi", "theta", "w", "r")
 WELL_IDENTIFIED = ("Lb", "Ma", "Xu", "Yv", "tf", "Alon", "Blat", "Dlat", "Nped", "Zcol", "ts")

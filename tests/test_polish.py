@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 
 from jaxheli.cost import paper_cost
-from jaxheli.excitation import multisine
-from jaxheli.flight import FlightData
+from jaxheli.synth.excitation import multisine
+from jaxheli.data.flight import FlightData
 from jaxheli.model import LOWER, TABLE2, UPPER, params_array
 from jaxheli.optim._box import free_mask
 from jaxheli.optim.polish import polish
-from jaxheli.simulate import simulate
+from jaxheli.sim.simulate import simulate
 
 OUTPUTS = ("u", "v", "p", "q", "phi", "theta", "w", "r")
 STEPS = 40

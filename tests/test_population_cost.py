@@ -2,10 +2,10 @@
 
 import numpy as np
 
-from jaxheli.flight import FlightData
+from jaxheli.data.flight import FlightData
 from jaxheli.model import LOWER, TABLE2, UPPER
-from jaxheli.population import population_cost
-from jaxheli.simulate import simulate
+from jaxheli.sim.population import population_cost
+from jaxheli.sim.simulate import simulate
 
 
 def test_population_cost_matches_per_candidate_numpy():

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from jaxheli.flight import FlightData, FlightDataError
+from jaxheli.data.flight import FlightData, FlightDataError
 from jaxheli.io import load
-from jaxheli.preprocess import detrend, from_samples, lowpass, resample, split, trim
+from jaxheli.data.preprocess import detrend, from_samples, lowpass, resample, split, trim
 
 
 def _flight(n=2001, dt=0.01, t0=0.0, outputs=None, names=("p", "q")):

@@ -20,17 +20,17 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from jaxheli.excitation import Excitation
+from jaxheli.synth.excitation import Excitation
 from jaxheli.gap.consistency import check
 from jaxheli.identify import IdentificationResult, intervals95
 from jaxheli.io import load, save_csv
 from jaxheli.model import PARAM_NAMES, PINNED, TABLE2
-from jaxheli.preprocess import lowpass, trim
+from jaxheli.data.preprocess import lowpass, trim
 from jaxheli.report import SECTION_IDS, add_parser, load_diagnosis, load_flights, load_results, write_report
 from jaxheli.report.html import esc, num
 from jaxheli.report.sections import data_summary
 from jaxheli.results import save_result
-from jaxheli.synth import piloted_flight
+from jaxheli.synth.piloted import piloted_flight
 
 CHANNELS = ("p", "q", "phi", "theta")
 REQUIRE_BROWSER = bool(os.environ.get("CI")) or os.environ.get("JAXHELI_REQUIRE_BROWSER", "") not in ("", "0")

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 import scipy.signal as ss
 
-from jaxheli.flight import FlightData
+from jaxheli.data.flight import FlightData
 from jaxheli.model import G_SI, LOWER, R50_G, R50_HOVER, TABLE2, UPPER, build_ab, params_array
-from jaxheli.simulate import make_simulator, simulate
+from jaxheli.sim.simulate import make_simulator, simulate
 
 ALL = ("u", "v", "p", "q", "phi", "theta", "a", "b", "w", "r")
 STABLE = params_array({"Zw": -0.8, "Xu": -0.3, "Yv": -0.9}, base=TABLE2)
@@ -130,7 +130,7 @@ def test_bad_options_raise():
 
 
 def test_estimated_initial_state_recovers_a_known_one():
-    from jaxheli.initial_state import estimate_x0
+    from jaxheli.sim.initial_state import estimate_x0
 
     f = _flight(n=400)
     x0 = np.zeros(13)

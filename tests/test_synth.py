@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from jaxheli.excitation import Excitation, doublet, multisine, sweep, three_two_one_one
+from jaxheli.synth.excitation import Excitation, doublet, multisine, sweep, three_two_one_one
 from jaxheli.model import INPUT_NAMES, R50_G, R50_HOVER, STATE_NAMES, TABLE2, build_ab
-from jaxheli.synth import DEFAULT_NOISE, DEFAULT_OUTPUTS, Pilot, default_flight, piloted_flight
+from jaxheli.synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, Pilot, default_flight, piloted_flight
 
 DT = 0.01
 T = np.arange(0.0, 20.0, DT)

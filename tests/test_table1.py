@@ -5,7 +5,7 @@ import numpy as np
 import jaxheli
 from jaxheli.cost import pearson
 from jaxheli.model import TABLE2
-from jaxheli.simulate import simulate
+from jaxheli.sim.simulate import simulate
 
 PRINTED = {"p": 0.9575, "q": 0.9089, "phi": 0.9084, "theta": 0.8722}
 

@@ -6,11 +6,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxheli.excitation import multisine
-from jaxheli.flight import FlightData
+from jaxheli.synth.excitation import multisine
+from jaxheli.data.flight import FlightData
 from jaxheli.model import PARAM_NAMES, PINNED, TABLE2
 from jaxheli.optim.uncertainty import from_residuals, identifiable
-from jaxheli.simulate import simulate
+from jaxheli.sim.simulate import simulate
 
 OUTPUTS = ("u", "v", "p", "q", "phi", "theta", "w", "r")
 USED = ("Xu", "Lb")

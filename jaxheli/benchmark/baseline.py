@@ -7,7 +7,7 @@ import time
 import numpy as np
 import scipy.linalg
 
-from ..flight import FlightData
+from ..data.flight import FlightData
 from ..model import LOWER, UPPER, build_ab, output_indices
 
 

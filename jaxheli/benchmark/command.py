@@ -73,7 +73,7 @@ def measure(args: argparse.Namespace) -> dict:
     import jax
     import jax.numpy as jnp
 
-    from ..simulate import make_simulator
+    from ..sim.simulate import make_simulator
     from .baseline import mealpy_rate, numpy_rate
     from .throughput import bench_flight, candidates, evaluation_rate, flops_per_candidate, generation_seconds
     from .throughput import matmul_peak
@@ -144,7 +144,7 @@ def _experiment(args: argparse.Namespace, baselines: dict[int, float]) -> dict:
 
 def _experiment_flight(spec: str | None):
     from ..io import load
-    from ..data_paths import data_file
+    from ..io.paths import data_file
     from .throughput import CHANNELS, bench_flight
 
     if spec:

@@ -8,12 +8,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..flight import FlightData
+from ..data.flight import FlightData
 from ..model import LOWER, UPPER
 from ..optim.iwo import IWO
 from ..optim.run import minimize_trials
-from ..population import simulator_cost
-from ..simulate import make_simulator
+from ..sim.population import simulator_cost
+from ..sim.simulate import make_simulator
 
 
 def paper_experiment(

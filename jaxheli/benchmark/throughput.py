@@ -9,12 +9,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..flight import FlightData
+from ..data.flight import FlightData
 from ..model import LOWER, N_INPUTS, N_STATES, TABLE2, UPPER
 from ..optim.iwo import IWO
 from ..optim.run import minimize
-from ..population import simulator_cost
-from ..simulate import Simulator, simulate
+from ..sim.population import simulator_cost
+from ..sim.simulate import Simulator, simulate
 
 CHANNELS = ("p", "q", "phi", "theta")
 

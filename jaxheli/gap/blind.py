@@ -26,12 +26,12 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .._types import Array, Float, Int
-from ..excitation import Excitation
-from ..flight import FlightData
+from ..synth.excitation import Excitation
+from ..data.flight import FlightData
 from ..model import INPUT_NAMES, TABLE2
-from ..synth import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
-from . import effects as fx
-from .augmented import GYROS, layout, no_effect
+from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
+from ..effects import registry as fx
+from ..effects.plant import GYROS, layout, no_effect
 from .fit_effect import Fit, embed, fit_candidates, score
 from .predictor import Predictor, make_predictor, tune_track
 from .ranking import shrink_entries

@@ -39,9 +39,9 @@ import scipy.signal
 import scipy.stats
 from jaxtyping import Float
 
-from ..flight import FlightData, FlightDataError
+from ..data.flight import FlightData, FlightDataError
 from ..model import G_SI, INPUT_NAMES
-from ..preprocess import _step
+from ..data.preprocess import _step
 from ._regress import Fit, hac_lstsq, well_posed
 
 N_SIGMA = 3.0

@@ -27,10 +27,10 @@ import numpy as np
 from .._types import Array, Float
 from ..cost import nmse
 from ..evaluate import resolve_params
-from ..flight import FlightData
+from ..data.flight import FlightData
 from ..model import G_SI, MEASURABLE
-from . import effects as fx
-from .augmented import no_effect
+from ..effects import registry as fx
+from ..effects.plant import no_effect
 from .consistency import check
 from .localise_cli import localise_prediction
 from .predictor import TRACK, Predictor, make_predictor
@@ -58,7 +58,7 @@ def _constant(flight: FlightData, channel: str) -> bool:
 
 
 def effect_eta(effect: str, params: dict[str, dict[str, float]], outputs: tuple[str, ...]) -> Float[np.ndarray, "E"]:
-    """``eta`` of a ranking entry: its fitted ``params`` (as :func:`~jaxheli.gap.effects.describe` names them)
+    """``eta`` of a ranking entry: its fitted ``params`` (as :func:`~jaxheli.effects.registry.describe` names them)
     on the no-effect vector; ``effect`` may be a combination ``"a+b"``."""
     eta = no_effect(outputs)
     for part in effect.split("+"):
@@ -285,7 +285,7 @@ def prepare(
 ) -> FlightData:
     """A flight ready for diagnosis: ends trimmed, significant consistency findings applied, low-passed,
     resampled (each step optional, in that order, logged in ``metadata["preprocessing"]``)."""
-    from ..preprocess import lowpass, resample, trim
+    from ..data.preprocess import lowpass, resample, trim
     from .consistency import correct
 
     if trim_samples:

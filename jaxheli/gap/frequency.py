@@ -23,7 +23,7 @@ import scipy.stats
 from jaxtyping import Complex
 
 from .._types import Array, ArrayLike, Float, Params
-from ..discretize import discretize
+from ..sim.discretize import discretize
 from ..model import G_SI, build_ab, output_matrix
 
 _RIDGE = 1e-9

@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 
 from .._types import Array, Float
-from .augmented import GUST_STATES, Plant
+from ..effects.plant import GUST_STATES, Plant
 
 _DOUBLINGS = 24
 _FLOOR = 1e-12

@@ -20,7 +20,7 @@ import scipy.stats
 
 from .._types import Float
 from ..cost import nmse, pearson, rmse, tic
-from ..flight import FlightData
+from ..data.flight import FlightData
 from ..model import INPUT_NAMES
 from .frequency import FrequencyResponse, residual_frequency_response
 

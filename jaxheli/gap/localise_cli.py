@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from ..evaluate import default_outputs, resolve_params
-from ..flight import FlightData
-from ..initial_state import estimate_x0
+from ..data.flight import FlightData
+from ..sim.initial_state import estimate_x0
 from ..model import G_SI, INPUT_NAMES
-from ..simulate import make_simulator
+from ..sim.simulate import make_simulator
 from .frequency import FrequencyResponse, estimate_frequency_response, mismatch, model_frequency_response
 from .localise import localise
 

@@ -22,9 +22,9 @@ import numpy as np
 
 from .._types import Array, Float
 from ..cost import nmse
-from ..flight import FlightData
+from ..data.flight import FlightData
 from ..model import G_SI, N_STATES, output_indices
-from .augmented import GUST_STATES, make_plant, no_effect
+from ..effects.plant import GUST_STATES, make_plant, no_effect
 from .kalman import gust_filter
 
 

@@ -6,7 +6,7 @@ significant when its held-out shrink is at least ``min_shrink`` % (default 3 %):
 largest shrink any candidate reached on the effect-free flights of the blind check
 (``benchmarks/blind_diagnosis.py``), where a useless effect fitted to noise shrinks the held-out gap by
 at most about 1 % and usually makes it worse. A candidate whose fitted parameters leave their physically
-plausible range (:func:`jaxheli.gap.effects.implausible`, e.g. a 16 s "input delay") is never significant:
+plausible range (:func:`jaxheli.effects.registry.implausible`, e.g. a 16 s "input delay") is never significant:
 it shrinks the gap by absorbing something else; nor is one whose fitted size lies within two standard
 errors of no effect (:data:`MIN_Z`). When none is, the verdict is "no significant effect".
 
@@ -26,16 +26,16 @@ import numpy as np
 import scipy.stats
 
 from .._types import ArrayLike, Float
-from ..flight import FlightData
+from ..data.flight import FlightData
 from ..model import G_SI
-from . import effects as fx
-from .augmented import no_effect
+from ..effects import registry as fx
+from ..effects.plant import no_effect
 from .fit_effect import Fit, embed, fit_candidates, score
 from .predictor import Predictor, make_predictor, tune_track
 
 MIN_Z = 2.0
 """Smallest distance of a significant effect from no effect, in standard errors of its fitted size
-(:func:`~jaxheli.gap.effects.evidence`): a shrink bought by parameters indistinguishable from zero (a
+(:func:`~jaxheli.effects.registry.evidence`): a shrink bought by parameters indistinguishable from zero (a
 "2 +- 3 ms delay") is model error the fit absorbed, not the effect. Every correct attribution of the blind
 check stands at 2.9 standard errors or more."""
 
@@ -122,7 +122,7 @@ def rank_effects(
 
     ``segment`` (s) is the predictor's restart interval and ``track`` its restart filter's level (``None``:
     :func:`~jaxheli.gap.predictor.tune_track` on ``train``); ``min_shrink`` (%) the significance
-    floor (see the module docstring); ``shape`` pads the batch of fits (:func:`~jaxheli.gap.effects.
+    floor (see the module docstring); ``shape`` pads the batch of fits (:func:`~jaxheli.effects.registry.
     candidate_arrays`). Both flights must carry the same output channels.
     """
     train_pred, validate_pred = _predictors(base_theta, train, validate, segment, g, track)
@@ -164,7 +164,7 @@ def diagnose_effects(
     """``{"ranking", "combination", "verdict", "track"}``: the ranking, the joint fit of the (up to ``top``)
     significant effects (``None`` unless two or more), a sentence, and the restart filter's level both used
     (tuned on ``train`` unless ``options`` give ``track``). With ``top > 1`` the single fits are padded to
-    the joint fit's width (:func:`~jaxheli.gap.effects.joint_shape`), so both run through one compiled
+    the joint fit's width (:func:`~jaxheli.effects.registry.joint_shape`), so both run through one compiled
     solver."""
     shape = fx.joint_shape(effects, train.output_names, top) if top > 1 else None
     options["track"] = _track(base_theta, train, options.get("segment", 2.0), options.get("g", G_SI),

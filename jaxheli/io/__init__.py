@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Callable
 
-from ..flight import FlightData, FlightDataError
+from ..data.flight import FlightData, FlightDataError
 from .csv import load_csv as load_csv, save_csv as save_csv
 from .mat import load_mat as load_mat
 from .mavlink import DEFAULT_PX4 as DEFAULT_PX4, load_log as load_log

@@ -13,7 +13,7 @@ from typing import Any, Mapping
 import numpy as np
 from pymavlink import DFReader
 
-from ..flight import FlightDataError
+from ..data.flight import FlightDataError
 
 _MAGIC = b"\xa3\x95\x80"  # record header 0xA3 0x95, then type 0x80: the first FMT record
 _FMT_LEN = 89

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..flight import FlightData, FlightDataError
+from ..data.flight import FlightData, FlightDataError
 from ..model import INPUT_NAMES, MEASURABLE
-from ..preprocess import from_samples
+from ..data.preprocess import from_samples
 
 
 def load_csv(path: str | Path, *, dt: float | None = None) -> FlightData:

@@ -22,7 +22,7 @@ import numpy as np
 import scipy.io
 from scipy.io.matlab import MatReadError
 
-from ..flight import FlightData, FlightDataError
+from ..data.flight import FlightData, FlightDataError
 from ..model import INPUT_NAMES, MEASURABLE
 
 IDDATA_COLUMNS = ("u", "v", "p", "q", "phi", "theta", "w", "r")

@@ -23,7 +23,7 @@ from typing import Any, Literal, Mapping
 
 import numpy as np
 
-from ..flight import FlightData, FlightDataError
+from ..data.flight import FlightData, FlightDataError
 from ..model import INPUT_NAMES, MEASURABLE
 from ._dataflash import Scan, check_head, scan_log
 

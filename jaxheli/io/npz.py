@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ..flight import FlightData, FlightDataError
+from ..data.flight import FlightData, FlightDataError
 
 _FIELDS = ("time", "inputs", "outputs", "output_names", "source", "metadata")
 

@@ -37,7 +37,7 @@ from pyulog import ULog
 from pyulog.exceptions import ULogException
 
 from .._types import Float
-from ..flight import FlightData, FlightDataError
+from ..data.flight import FlightData, FlightDataError
 from ..model import INPUT_NAMES, MEASURABLE
 from ._dataflash import Scan
 from .mavlink import _absent, _grid, _interp, _series

@@ -30,10 +30,10 @@ import optimistix as optx
 
 from .._types import Array, ArrayLike, Float
 from ..cost import paper_cost, pearson
-from ..discretize import Hold
-from ..flight import FlightData
+from ..sim.discretize import Hold
+from ..data.flight import FlightData
 from ..model import G_SI, N_PARAMS, PARAM_NAMES
-from ..simulate import InitialState, Simulator, make_simulator
+from ..sim.simulate import InitialState, Simulator, make_simulator
 from ._box import Free, clip_unit, free_mask, from_unit, midpoint, to_unit
 
 Solver = Literal["lm", "gn"]

@@ -11,10 +11,10 @@ solver does not improve it, the start comes back unchanged.
 from __future__ import annotations
 
 from .._types import ArrayLike, Float
-from ..discretize import Hold
-from ..flight import FlightData
+from ..sim.discretize import Hold
+from ..data.flight import FlightData
 from ..model import G_SI
-from ..simulate import InitialState
+from ..sim.simulate import InitialState
 from ._box import Free
 from .pem import Objective, PEMResult, Solver, _fit
 

@@ -26,10 +26,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, ArrayLike, Bool, Float
-from ..discretize import Hold
-from ..flight import FlightData
+from ..sim.discretize import Hold
+from ..data.flight import FlightData
 from ..model import G_SI, N_PARAMS, PARAM_NAMES
-from ..simulate import InitialState
+from ..sim.simulate import InitialState
 from ._box import Free, free_mask
 from .pem import _problem
 

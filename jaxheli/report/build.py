@@ -6,7 +6,7 @@ import datetime
 from collections.abc import Sequence
 from pathlib import Path
 
-from ..flight import FlightData
+from ..data.flight import FlightData
 from . import sections as s
 from .html import page
 from .inputs import Diagnosis, ResultSource, load_diagnosis, load_flights, load_results

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..flight import FlightData
+from ..data.flight import FlightData
 from ..gap.frequency import FrequencyResponse
 from ..plots import plot_convergence, plot_time_domain
 from .inputs import ResultSource

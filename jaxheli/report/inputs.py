@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..flight import FlightData
+from ..data.flight import FlightData
 from ..model import params_array
 
 

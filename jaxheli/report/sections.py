@@ -13,7 +13,7 @@ import numpy as np
 
 from ..cost import metrics as channel_metrics
 from ..evaluate import default_outputs, simulate_as_scored
-from ..flight import FlightData
+from ..data.flight import FlightData
 from ..model import G_SI, PARAM_NAMES, PINNED, STATE_UNITS
 from ..results import PLOT_CHANNELS
 from .figures import convergence_png, frequency_png, time_domain_png

@@ -17,12 +17,12 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
 
-from ._types import Array, ArrayLike, Float
-from .discretize import discretize
+from .._types import Array, ArrayLike, Float
+from ..sim.discretize import discretize
 from .excitation import Excitation
-from .flight import FlightData
-from .gap import augmented
-from .model import G_SI, INPUT_NAMES, MEASURABLE, N_PARAMS, STATE_NAMES, TABLE2, build_ab, output_indices
+from ..data.flight import FlightData
+from ..effects.plant import Plant, layout, make_plant, size
+from ..model import G_SI, INPUT_NAMES, MEASURABLE, N_PARAMS, STATE_NAMES, TABLE2, build_ab, output_indices
 
 DEFAULT_OUTPUTS: tuple[str, ...] = ("u", "v", "p", "q", "phi", "theta", "w", "r")
 """Output channels of a synthetic flight: what an IMU, attitude estimator and GPS give."""
@@ -133,7 +133,7 @@ def piloted_flight(
     derivatives (the aerodynamics see body velocity minus wind): process noise. ``noise`` is a multiple
     of :data:`DEFAULT_NOISE` or a ``{channel: std}`` map naming every output. ``seed`` fixes gust and
     measurement noise (``jax.random``). Inputs are the applied sticks; outputs the measured ``outputs``.
-    ``effect`` (``eta`` of :mod:`jaxheli.gap.augmented` for ``outputs``) injects unmodelled effects into the
+    ``effect`` (``eta`` of :mod:`jaxheli.effects.plant` for ``outputs``) injects unmodelled effects into the
     truth plant (delay, lag, saturation between the recorded sticks and the rotor, drag, rotor-speed
     coupling, sensor errors); the pilot still designs on ``theta`` alone. Gusts stay ``gust``'s.
     """
@@ -170,11 +170,11 @@ def piloted_flight(
             clean = np.asarray(states)[:, channels]
         else:
             effect = np.asarray(effect, dtype=np.float64)
-            _check(effect.shape == (augmented.size(outputs),) and bool(np.all(np.isfinite(effect))),
-                   f"piloted_flight: effect must be {augmented.size(outputs)} finite values (jaxheli.gap.augmented"
+            _check(effect.shape == (size(outputs),) and bool(np.all(np.isfinite(effect))),
+                   f"piloted_flight: effect must be {size(outputs)} finite values (jaxheli.effects.plant"
                    f" layout for {outputs}), got shape {effect.shape}")
-            max_delay = float(np.max(np.abs(effect[augmented.layout(outputs)["delay"]]))) + dt
-            plant = augmented.make_plant(theta, effect, dt, outputs, g=g, max_delay=max_delay)
+            max_delay = float(np.max(np.abs(effect[layout(outputs)["delay"]]))) + dt
+            plant = make_plant(theta, effect, dt, outputs, g=g, max_delay=max_delay)
             states, applied, clean = _fly_effect(plant, K, sticks, white, time, gust, rho, pilot.lag_samples(dt))
         meas_noise = jax.random.normal(key_meas, (n, len(outputs)), jnp.float64) * std[None, :]
         states, applied = np.asarray(states), np.asarray(applied)
@@ -252,7 +252,7 @@ def _fly(
 
 @functools.partial(jax.jit, static_argnames="lag")
 def _fly_effect(
-    plant: augmented.Plant, K: Array, excitation: Array, white: Array, time: Array, gust: float, rho: float,
+    plant: Plant, K: Array, excitation: Array, white: Array, time: Array, gust: float, rho: float,
     lag: int,
 ) -> tuple[Float[Array, "N 13"], Float[Array, "N 4"], Float[Array, "N k"]]:
     """:func:`_fly` with the effect-augmented truth plant; also returns the clean sensor outputs."""

@@ -12,7 +12,7 @@ import numpy as np
 import scipy.signal
 
 from .flight import FlightData, FlightDataError
-from .model import INPUT_NAMES
+from ..model import INPUT_NAMES
 
 
 def _step(flight: FlightData, record: dict[str, Any], **changes: Any) -> FlightData:

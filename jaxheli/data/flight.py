@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from .model import INPUT_NAMES, MEASURABLE, STATE_UNITS
+from ..model import INPUT_NAMES, MEASURABLE, STATE_UNITS
 
 
 class FlightDataError(ValueError):

@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, Float
-from ..discretize import discretize
+from ..sim.discretize import discretize
 from ..model import G_SI, N_INPUTS, STATE_NAMES, build_ab, output_indices
 
 GUST_STATES: tuple[str, ...] = ("u", "v", "w")

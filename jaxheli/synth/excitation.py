@@ -12,7 +12,7 @@ from typing import Any, Literal
 import numpy as np
 from jaxtyping import ArrayLike, Float
 
-from .model import INPUT_NAMES
+from ..model import INPUT_NAMES
 
 _EDGE_TOL = 1e-9
 """Relative tolerance that puts a sample lying on a pulse edge (up to rounding) after the edge."""

@@ -21,11 +21,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import Array, Float, Params
+from .._types import Array, Float, Params
 from .blocked import Plan, blocked_rollout, choose_block, make_plan, population_discrete
 from .discretize import Hold, discretize
-from .flight import FlightData
-from .model import G_SI, MEASURABLE, N_STATES, build_ab, output_indices
+from ..data.flight import FlightData
+from ..model import G_SI, MEASURABLE, N_STATES, build_ab, output_indices
 
 InitialState = Literal["zero", "measured"]
 Reset = Literal["carry", "zero"]
@@ -170,10 +170,10 @@ def make_simulator(
         segment: restart interval in seconds (multiple shooting); ``None`` for one long run.
         reset: at a restart, unmeasured states are ``"carry"``-ed over or set to ``"zero"``.
         method: ``"scan"`` (one step per sample), ``"blocked"`` (blocks of ``block`` samples: block-Toeplitz
-            products and a scan over block starts, see :mod:`jaxheli.blocked`; equal up to rounding) or
+            products and a scan over block starts, see :mod:`jaxheli.sim.blocked`; equal up to rounding) or
             ``"auto"``: blocked whenever a block length fits the segment length, else scan.
         block: block length in samples for the blocked method (default: chosen by
-            :func:`jaxheli.blocked.choose_block`); must divide the segment length.
+            :func:`jaxheli.sim.blocked.choose_block`); must divide the segment length.
     """
     names = tuple(flight.output_names if outputs is None else outputs)
     missing = [c for c in names if c not in flight.output_names]

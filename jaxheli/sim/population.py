@@ -5,9 +5,9 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
-from ._types import Array, Float, Population
-from .cost import paper_cost
-from .flight import FlightData
+from .._types import Array, Float, Population
+from ..cost import paper_cost
+from ..data.flight import FlightData
 from .pearson_sums import blocked_cost
 from .shard import map_population
 from .simulate import Simulator, make_simulator
@@ -18,8 +18,8 @@ def simulator_cost(sim: Simulator, thetas: Array, target: Array, *, shard: bool 
     """Paper cost of ``thetas[P, 40]`` under a prepared simulator against ``target[N, k]``.
 
     A blocked simulator (``method="blocked"``, what ``"auto"`` picks when it can) scores from Pearson
-    sums of block Gram matrices without forming the outputs (:mod:`jaxheli.pearson_sums`), its population
-    spread over the local devices when there are several (``shard``, see :func:`jaxheli.shard.map_population`);
+    sums of block Gram matrices without forming the outputs (:mod:`jaxheli.sim.pearson_sums`), its population
+    spread over the local devices when there are several (``shard``, see :func:`jaxheli.sim.shard.map_population`);
     a scan simulator simulates every sample and scores the outputs. Both give the same cost up to rounding.
     """
     thetas = jnp.asarray(thetas)

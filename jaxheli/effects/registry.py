@@ -1,6 +1,6 @@
 """The library of candidate unmodelled effects: which entries of ``eta`` each one frees, named, with units.
 
-An effect is a set of parameters of the augmented plant (:mod:`jaxheli.gap.augmented`), each with a
+An effect is a set of parameters of the augmented plant (:mod:`jaxheli.effects.plant`), each with a
 physical unit, where it acts (an input axis, an output channel, a coupling), a start value for the fit
 (away from kinks such as ``|delay| = 0``, where the gradient vanishes) and the largest magnitude that is
 physically plausible on a small helicopter (:func:`implausible`). Stable names are in :data:`ALL`.
@@ -29,7 +29,7 @@ import dataclasses
 import numpy as np
 
 from ..model import INPUT_NAMES
-from .augmented import GYROS, layout, no_effect
+from .plant import GYROS, layout, no_effect
 
 ALL: tuple[str, ...] = (
     "input_delay", "actuator_lag", "output_bias_drift", "process_noise", "quadratic_drag",

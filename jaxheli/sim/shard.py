@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, PartitionSpec
 
-from ._types import Array
+from .._types import Array
 
 AXIS = "population"
 MIN_PER_DEVICE = 32

@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import Array, Float
+from .._types import Array, Float
 from .discretize import Hold
 
 
@@ -95,7 +95,7 @@ def _taylor(X: Array, degree: int) -> Array:
 def discretize_population(
     A: Float[Array, "n n P"], B: Float[Array, "n m P"], dt: float, hold: Hold
 ) -> tuple[Array, Array, Array]:
-    """``(Ad, B0, B1)``, population last, as :func:`jaxheli.discretize.discretize` computes them."""
+    """``(Ad, B0, B1)``, population last, as :func:`jaxheli.sim.discretize.discretize` computes them."""
     n, m, P = B.shape
     dtype = A.dtype
     if hold == "zoh":

@@ -1,7 +1,7 @@
 """The paper's cost from Gram matrices of the block inputs: Pearson sums without simulated outputs.
 
 In whole block ``j`` the outputs are ``y_{j,i} = CA_i xi_j + sum_q G_q u_{jL+i-q}`` (see
-:mod:`jaxheli.blocked`). Centre the block-start states and the stacked block inputs over the blocks
+:mod:`jaxheli.sim.blocked`). Centre the block-start states and the stacked block inputs over the blocks
 (``xc_j``, ``Uc_j``) and the measurement (``mc``, and ``mc'`` centred again at each block position ``i``).
 Per channel, with ``ybar_i`` the mean output at position ``i``,
 
@@ -25,11 +25,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import Array, Float
+from .._types import Array, Float
 from .blocked import Operators, Plan, block_inputs, block_states, initial_shifted, operators
 from .blocked import population_discrete, tail_outputs
-from .cost import flat_from_sums, pearson_from_sums
-from .model import output_indices
+from ..cost import flat_from_sums, pearson_from_sums
+from ..model import output_indices
 from .population_linalg import pmatmul
 
 

@@ -27,9 +27,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import Array, Float
+from .._types import Array, Float
 from .discretize import Discrete, Hold
-from .model import build_ab
+from ..model import build_ab
 from .population_linalg import discretize_population, pmatmul, pmatvec
 
 PREFERRED_BLOCK = 16

@@ -11,9 +11,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import Array, Float
-from .flight import FlightData
-from .model import N_STATES
+from .._types import Array, Float
+from ..data.flight import FlightData
+from ..model import N_STATES
 from .simulate import make_simulator
 
 
