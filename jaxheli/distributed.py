@@ -42,8 +42,8 @@ from .model import LOWER, UPPER
 from .optim._base import AbstractPopulationOptimizer, CostFn, raw_key
 from .optim.iwo import IWO
 from .optim.run import RunResult, minimize_trials
-from .sim.population import simulator_cost
-from .sim.simulate import Simulator, make_simulator
+from .sim.population import PopulationCost
+from .sim.simulate import make_simulator
 
 ENV_COORDINATOR = "JAXHELI_COORDINATOR"
 ENV_NUM_PROCESSES = "JAXHELI_NUM_PROCESSES"
@@ -268,7 +268,7 @@ def _scaling_worker() -> None:
     flight = bench_flight(args.samples)
     sim = make_simulator(flight)
     target = jnp.asarray(flight.outputs, args.dtype)
-    cost = eqx.Partial(_cast_cost, sim, target)
+    cost = PopulationCost(sim, target, args.dtype)
     opt = IWO(LOWER, UPPER, iterations=args.iterations)
     keys = jax.random.split(jax.random.key(0), args.trials)
     seconds = []
@@ -282,11 +282,6 @@ def _scaling_worker() -> None:
               flush=True)
     if jax.distributed.is_initialized():
         jax.distributed.shutdown()
-
-
-def _cast_cost(sim: Simulator, target: jax.Array, thetas: jax.Array) -> jax.Array:
-    """The paper cost computed in ``target``'s dtype, returned in the optimiser's."""
-    return simulator_cost(sim, thetas.astype(target.dtype), target).astype(thetas.dtype)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:

@@ -9,18 +9,14 @@ import numpy as np
 
 from ._types import Float
 from .cost import metrics
-from .data.flight import FlightData
-from .sim.initial_state import estimate_x0
+from .data.flight import FlightData, default_outputs as default_outputs
 from .model import G_SI, N_PARAMS, PARAM_NAMES, TABLE2, params_array
-from .sim.simulate import make_simulator
+from .problem import Problem, as_problem, make_problem
+from .sim.initial_state import estimate_x0
+from .sim.simulate import Simulator
 
 NAMED_MODELS = {"table2": TABLE2}
 """Parameter sets a user can name instead of a file (SI units)."""
-
-
-def default_outputs(flight: FlightData) -> tuple[str, ...]:
-    """The flight's measured channels, without the flapping columns a and b (stick multiples in the real data)."""
-    return tuple(c for c in flight.output_names if c not in ("a", "b"))
 
 
 def resolve_params(spec: str | Path | np.ndarray | dict) -> Float[np.ndarray, "40"]:
@@ -53,37 +49,44 @@ def resolve_params(spec: str | Path | np.ndarray | dict) -> Float[np.ndarray, "4
 
 def evaluate(
     params: str | Path | np.ndarray | dict,
-    flight: FlightData,
+    data: FlightData | Problem,
     *,
     outputs: tuple[str, ...] | list[str] | None = None,
     x0: str | np.ndarray = "estimate",
     **options,
 ) -> dict[str, object]:
-    """Metrics of one parameter set on ``flight``.
+    """Metrics of one parameter set on a record.
 
     Args:
         params: anything :func:`resolve_params` takes.
-        flight: the record to score on.
-        outputs: channels to score (default :func:`default_outputs`).
+        data: the record to score on: a flight, or a :class:`~jaxheli.problem.Problem` (its channels and
+            simulation settings; ``outputs`` and ``options`` then change its settings as a variant).
+        outputs: channels to score (default :func:`~jaxheli.data.flight.default_outputs`).
         x0: ``"estimate"`` (least-squares initial state, as MATLAB ``compare``), ``"zero"`` (the paper),
             ``"measured"``, or a 13-vector.
-        options: simulation settings of :func:`jaxheli.make_simulator` (``hold``, ``g``, ``segment``, ...).
+        options: simulation settings (:class:`~jaxheli.problem.Settings` fields: ``hold``, ``g``, ``segment``).
 
     Returns ``{"pearson": {ch: rho}, "tic": ..., "rmse": ..., "fit_percent": ..., "cost": C,
     "simulation": settings}``.
     """
     theta = resolve_params(params)
-    names = tuple(outputs) if outputs is not None else default_outputs(flight)
-    if isinstance(x0, str) and x0 == "estimate":
-        x0_used = estimate_x0(theta, flight, outputs=names, **options)
-    else:
-        x0_used = x0
-    sim = make_simulator(flight, outputs=names, x0=x0_used, **options)
-    out = metrics(sim(theta), flight.select(names).outputs, names)
+    problem = as_problem(data, outputs=outputs, **options)
+    sim = started_simulator(problem, theta, x0)
+    out = metrics(sim(theta), problem.target, problem.outputs)
     settings = sim.describe()
     settings["initial_state"] = x0 if isinstance(x0, str) else "given"
     out["simulation"] = settings
     return out
+
+
+def started_simulator(problem: Problem, theta: Float[np.ndarray, "40"], x0: str | np.ndarray) -> Simulator:
+    """``problem``'s simulator started from ``x0``: ``"estimate"`` (least squares for ``theta``,
+    :func:`~jaxheli.sim.initial_state.estimate_x0`), ``"zero"``, ``"measured"`` or a 13-vector."""
+    if isinstance(x0, str) and x0 == "estimate":
+        return problem.sim.replace_x0(estimate_x0(theta, problem))
+    if isinstance(x0, str):
+        return problem.variant(x0=x0).sim
+    return problem.sim.replace_x0(np.asarray(x0))
 
 
 def simulate_as_scored(
@@ -100,9 +103,7 @@ def simulate_as_scored(
     theta = resolve_params(params)
     scored = tuple(c for c in settings.get("outputs") or () if c in flight.output_names)
     names = scored if set(channels) <= set(scored) else tuple(channels)
-    opts = {"outputs": names, "hold": settings.get("hold", "zoh"), "g": settings.get("g", G_SI),
-            "segment": settings.get("segment")}
-    if isinstance(x0, str) and x0 == "estimate":
-        x0 = estimate_x0(theta, flight, **opts)
-    y = np.asarray(make_simulator(flight, x0=x0, **opts)(theta))
+    problem = make_problem(flight, outputs=names, hold=settings.get("hold", "zoh"), g=settings.get("g", G_SI),
+                           segment=settings.get("segment"))
+    y = np.asarray(started_simulator(problem, theta, x0)(theta))
     return y[:, [names.index(c) for c in channels]]

@@ -12,16 +12,13 @@ import dataclasses
 import time
 from typing import Any, Literal
 
-import equinox as eqx
 import jax
-import jax.numpy as jnp
 import numpy as np
 import scipy.stats
 
-from ._types import Array, Float
-from .sim.population import simulator_cost
-from .evaluate import default_outputs, evaluate
-from .data.flight import FlightData
+from ._types import Float
+from .data.flight import FlightData, default_outputs
+from .evaluate import evaluate
 from .model import G_SI, LOWER, PARAM_NAMES, UPPER
 from .optim.ga import GA
 from .optim.iwo import IWO
@@ -29,23 +26,10 @@ from .optim.pem import pem
 from .optim.polish import polish
 from .optim.run import minimize, minimize_trials
 from .optim.uncertainty import standard_errors
-from .sim.simulate import Simulator, make_simulator
+from .problem import Problem, Settings, make_problem
 
 Method = Literal["iwo", "ga", "pem", "iwo+polish"]
 METHODS: tuple[str, ...] = ("iwo", "ga", "pem", "iwo+polish")
-
-
-class _PopulationCost(eqx.Module):
-    """``thetas[P, 40] -> cost[P]`` on one flight, scored in ``dtype`` (the fastest kernel the simulator
-    has, :func:`jaxheli.sim.population.simulator_cost`); a pytree, so the flight stays traced inside the scan."""
-
-    sim: Simulator
-    target: Float[Array, "N k"]
-    dtype: str = eqx.field(static=True)
-
-    def __call__(self, thetas: Float[Array, "P 40"]) -> Float[Array, "P"]:
-        cost = simulator_cost(self.sim, thetas.astype(self.dtype), self.target.astype(self.dtype))
-        return cost.astype(thetas.dtype)
 
 
 @dataclasses.dataclass
@@ -108,7 +92,7 @@ def intervals95(trial_params: Float[np.ndarray, "K 40"]) -> dict[str, tuple[floa
 
 
 def identify(
-    flight: FlightData,
+    data: FlightData | Problem,
     *,
     method: Method = "iwo+polish",
     validate: FlightData | None = None,
@@ -131,10 +115,12 @@ def identify(
     resume: bool = False,
     progress: bool = True,
 ) -> IdentificationResult:
-    """Identify the 40 hover-model parameters from ``flight``.
+    """Identify the 40 hover-model parameters from a training record.
 
     Args:
-        flight: training record.
+        data: training record: a flight (its problem is built from ``outputs``, ``segment``, ``hold``, ``g``,
+            ``lower``, ``upper``, ``search_precision``), or a :class:`~jaxheli.problem.Problem` whose settings
+            replace those arguments.
         method: ``"iwo"``, ``"ga"``, ``"pem"`` or ``"iwo+polish"`` (IWO, then optimistix on the same cost).
         validate: optional held-out record, scored with an estimated initial state and from rest.
         iterations: generations of IWO / GA (the paper: 1000).
@@ -143,7 +129,8 @@ def identify(
         outputs: channels of the cost (default: the flight's measured channels without a, b).
         segment: restart interval of the simulation, s (``None``: the paper's single run from rest).
         hold, g: simulation settings (:func:`jaxheli.make_simulator`).
-        lower, upper: search box of the population methods (default: the authors' bounds).
+        lower, upper: search box of every engine (population, PEM, polish, standard errors; default: the
+            authors' bounds).
         start: PEM's start (default: the middle of the bounds; random in the box for trials > 1).
         polish_steps: Levenberg-Marquardt steps of the polish.
         pem_segment: predictor restart interval of PEM, s (keeps unstable candidates usable).
@@ -158,32 +145,32 @@ def identify(
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if trials < 1 or iterations < 1:
         raise ValueError(f"trials and iterations must be >= 1, got {trials}, {iterations}")
-    names = tuple(outputs) if outputs is not None else default_outputs(flight)
-    sim_options = {"outputs": names, "segment": segment, "hold": hold, "g": g}
+    problem = data if isinstance(data, Problem) else make_problem(
+        data, Settings(outputs=outputs, segment=segment, hold=hold, g=g, lower=lower, upper=upper,
+                       precision=search_precision))
+    settings = problem.settings
     t0 = time.perf_counter()
     key = jax.random.PRNGKey(seed)
     history = np.zeros((trials, 0))
     polish_info = None
     if method == "pem":
-        trial_params, trial_costs = _pem_trials(flight, key, trials, start, names, pem_segment, hold, g)
-        fit_options = {"outputs": names, "segment": pem_segment, "hold": hold, "g": g, "x0": "measured"}
+        fitted = problem.variant(segment=pem_segment, x0="measured")
+        trial_params, trial_costs = _pem_trials(fitted, key, trials, start)
     else:
-        sim = make_simulator(flight, x0="zero", **sim_options)
-        cost_fn = _PopulationCost(sim, jnp.asarray(flight.select(names).outputs), search_precision)
+        fitted = problem.variant(x0="zero")
+        bounds = problem.bounds
         engine_type = IWO if method != "ga" else GA
-        engine = engine_type(lower=lower, upper=upper, iterations=iterations, **(engine_options or {}))
+        engine = engine_type(lower=bounds.lower, upper=bounds.upper, iterations=iterations, **(engine_options or {}))
         keys = jax.random.split(key, trials)
-        run = (
-            minimize_trials(engine, cost_fn, keys, chunk=chunk, progress=progress, checkpoint=checkpoint, resume=resume)
-            if trials > 1
-            else minimize(engine, cost_fn, keys[0], chunk=chunk, progress=progress, checkpoint=checkpoint, resume=resume)
-        )
+        run_options = {"chunk": chunk, "progress": progress, "checkpoint": checkpoint, "resume": resume}
+        cost_fn = fitted.population_cost()
+        run = (minimize_trials(engine, cost_fn, keys, **run_options) if trials > 1
+               else minimize(engine, cost_fn, keys[0], **run_options))
         trial_params = np.asarray(run.best_theta).reshape(trials, -1)
         trial_costs = np.asarray(run.best_cost).reshape(trials)
         history = np.asarray(run.history).reshape(trials, -1)
-        fit_options = {**sim_options, "x0": "zero"}
         if method == "iwo+polish":
-            polished = [polish(th, flight, max_steps=polish_steps, x0="zero", **sim_options) for th in trial_params]
+            polished = [polish(th, fitted, max_steps=polish_steps) for th in trial_params]
             best_before = int(np.argmin(trial_costs))
             polish_info = {
                 "params_before": dict(zip(PARAM_NAMES, map(float, trial_params[best_before]))),
@@ -196,48 +183,55 @@ def identify(
     best = int(np.argmin(trial_costs))
     params = trial_params[best]
     seconds = time.perf_counter() - t0
-    unc = standard_errors(flight, params, **fit_options)
-    settings = {
-        "method": method, "iterations": iterations, "trials": trials, "outputs": list(names),
-        "segment": segment, "hold": hold, "g": g, "pem_segment": pem_segment, "polish_steps": polish_steps,
-        "train_source": flight.source, "validate_source": None if validate is None else validate.source,
-        "x64": bool(jax.config.jax_enable_x64), "search_precision": search_precision,
+    unc = standard_errors(fitted, params)
+    record = {
+        "method": method, "iterations": iterations, "trials": trials, "outputs": list(problem.outputs),
+        "segment": settings.segment, "hold": settings.hold, "g": settings.g, "pem_segment": pem_segment,
+        "polish_steps": polish_steps, "train_source": str(problem.source),
+        "validate_source": None if validate is None else validate.source,
+        "x64": bool(jax.config.jax_enable_x64), "search_precision": settings.precision,
         "engine_options": dict(engine_options or {}),
     }
-    train_block = evaluate(params, flight, x0=fit_options["x0"], **{k: v for k, v in fit_options.items() if k != "x0"})
     return IdentificationResult(
         method=method,
         seed=seed,
-        settings=settings,
+        settings=record,
         params=params,
         trial_params=trial_params,
         trial_costs=trial_costs,
         history=history,
         intervals95=intervals95(trial_params),
         stderr=dict(zip(PARAM_NAMES, map(float, unc.stderr))),
-        train=train_block,
-        validate=None if validate is None else validation_block(params, validate, names, hold=hold, g=g, segment=segment),
+        train=evaluate(params, fitted, x0=fitted.settings.x0),
+        validate=None if validate is None else validation_block(params, validate, problem),
         polish=polish_info,
         seconds=seconds,
     )
 
 
 def validation_block(
-    params: Float[np.ndarray, "40"], flight: FlightData, outputs: tuple[str, ...], **options
+    params: Float[np.ndarray, "40"], flight: FlightData, problem: Problem | tuple[str, ...], **options
 ) -> dict[str, Any]:
-    """Scores on a held-out flight: initial state estimated (default) and from rest (the paper)."""
+    """Scores on a held-out flight: initial state estimated (default) and from rest (the paper).
+
+    ``problem`` is the training problem (its scored channels, hold, g and segment apply) or, with
+    ``options`` (:class:`~jaxheli.problem.Settings` fields), the scored channels."""
+    if isinstance(problem, Problem):
+        outputs, options = problem.outputs, {"hold": problem.settings.hold, "g": problem.settings.g,
+                                             "segment": problem.settings.segment}
+    else:
+        outputs = tuple(problem)
     chans = tuple(c for c in outputs if c in flight.output_names) or default_outputs(flight)
-    block = evaluate(params, flight, outputs=chans, x0="estimate", **options)
-    block["zero_initial_state"] = evaluate(params, flight, outputs=chans, x0="zero", **options)
+    held_out = make_problem(flight, outputs=chans, **options)
+    block = evaluate(params, held_out, x0="estimate")
+    block["zero_initial_state"] = evaluate(params, held_out, x0="zero")
     return block
 
 
-def _pem_trials(flight, key, trials, start, names, segment, hold, g) -> tuple[np.ndarray, np.ndarray]:
-    """PEM from the given start (or the middle of the box), plus random starts for further trials."""
-    mid = (LOWER + UPPER) / 2 if start is None else np.asarray(start, dtype=np.float64)
-    starts = [mid] + [
-        LOWER + (UPPER - LOWER) * np.asarray(jax.random.uniform(k, (len(PARAM_NAMES),)))
-        for k in jax.random.split(key, trials - 1)
-    ] if trials > 1 else [mid]
-    fits = [pem(flight, start=s, outputs=names, segment=segment, hold=hold, g=g) for s in starts]
+def _pem_trials(problem: Problem, key, trials: int, start) -> tuple[np.ndarray, np.ndarray]:
+    """PEM from the given start (or the middle of the box), plus random starts in the box for further trials."""
+    mid = problem.bounds.midpoint() if start is None else np.asarray(start, dtype=np.float64)
+    starts = [mid] + list(problem.bounds.uniform(k, 1)[0] for k in jax.random.split(key, trials - 1)) \
+        if trials > 1 else [mid]
+    fits = [pem(problem, start=s) for s in starts]
     return np.stack([f.theta for f in fits]), np.array([f.cost for f in fits])

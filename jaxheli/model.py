@@ -29,6 +29,10 @@ STATE_UNITS: dict[str, str] = {
 MEASURABLE: tuple[str, ...] = ("u", "v", "p", "q", "phi", "theta", "a", "b", "w", "r")
 """States a flight log can carry as outputs (CSV column names, ``FlightData.output_names``)."""
 
+FLAPPING: tuple[str, ...] = ("a", "b")
+"""Flapping states: the authors' files carry stick multiples under these names, never measurements, so they are
+not fitted by default and never restart a simulation."""
+
 PARAM_NAMES: tuple[str, ...] = (
     "Xu", "Xa", "Yv", "Yb", "Lu", "Lv", "Lb", "Lw", "Mu", "Mv",
     "Ma", "Mw", "tf", "Ab", "Ac", "Ba", "Bd", "Za", "Zb", "Zw",

@@ -9,7 +9,11 @@ from jaxheli.cost import pearson
 from jaxheli.synth.excitation import multisine
 from jaxheli.data.flight import FlightData
 from jaxheli.model import LOWER, PARAM_NAMES, PINNED, TABLE2, UPPER, params_array
-from jaxheli.optim._box import clip_unit, free_mask, from_unit, midpoint, to_unit
+from jaxheli.bounds import Bounds
+
+_BOX = Bounds()
+clip_unit, free_mask, from_unit, midpoint, to_unit = (Bounds.clip_unit, _BOX.free_mask, _BOX.from_unit,
+                                                      _BOX.midpoint, _BOX.to_unit)
 from jaxheli.optim.pem import pem
 from jaxheli.sim.simulate import simulate
 

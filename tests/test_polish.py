@@ -7,7 +7,7 @@ from jaxheli.cost import paper_cost
 from jaxheli.synth.excitation import multisine
 from jaxheli.data.flight import FlightData
 from jaxheli.model import LOWER, TABLE2, UPPER, params_array
-from jaxheli.optim._box import free_mask
+from jaxheli.bounds import Bounds
 from jaxheli.optim.polish import polish
 from jaxheli.sim.simulate import simulate
 
@@ -28,7 +28,7 @@ def flight() -> FlightData:
 
 def _perturbed(seed: int) -> np.ndarray:
     rng = np.random.default_rng(seed)
-    return np.where(free_mask(), TABLE2 * (1 + rng.uniform(-0.2, 0.2, 40)), TABLE2)
+    return np.where(Bounds().free_mask(), TABLE2 * (1 + rng.uniform(-0.2, 0.2, 40)), TABLE2)
 
 
 def test_polish_lowers_the_paper_cost(flight):

@@ -12,7 +12,7 @@ from ..data.flight import FlightData
 from ..model import LOWER, UPPER
 from ..optim.iwo import IWO
 from ..optim.run import minimize_trials
-from ..sim.population import simulator_cost
+from ..sim.population import PopulationCost
 from ..sim.simulate import make_simulator
 
 
@@ -33,11 +33,7 @@ def paper_experiment(
     seeds among them, evaluations per second and the best cost of each trial.
     """
     sim = make_simulator(flight)
-    target = jnp.asarray(flight.outputs, dtype)
-
-    def cost(thetas: jax.Array) -> jax.Array:
-        return simulator_cost(sim, thetas.astype(dtype), target).astype(thetas.dtype)
-
+    cost = PopulationCost(sim, jnp.asarray(flight.outputs, dtype), jnp.dtype(dtype).name)
     opt = IWO(LOWER, UPPER, iterations=iterations)
     keys = jax.random.split(jax.random.key(seed), trials)
     t0 = time.perf_counter()

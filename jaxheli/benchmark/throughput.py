@@ -13,7 +13,7 @@ from ..data.flight import FlightData
 from ..model import LOWER, N_INPUTS, N_STATES, TABLE2, UPPER
 from ..optim.iwo import IWO
 from ..optim.run import minimize
-from ..sim.population import simulator_cost
+from ..sim.population import PopulationCost, simulator_cost
 from ..sim.simulate import Simulator, simulate
 
 CHANNELS = ("p", "q", "phi", "theta")
@@ -55,11 +55,7 @@ def evaluation_rate(
 
 def generation_seconds(sim: Simulator, target: jax.Array, generations: int, repeats: int = 2) -> float:
     """Seconds per generation of the paper's IWO (20 -> 40 plants, up to 7 seeds: 280 scored per step)."""
-    dtype = target.dtype
-
-    def cost(thetas: jax.Array) -> jax.Array:
-        return simulator_cost(sim, thetas.astype(dtype), target).astype(thetas.dtype)
-
+    cost = PopulationCost(sim, target, target.dtype.name)
     opt = IWO(LOWER, UPPER)
     run = lambda: minimize(opt, cost, jax.random.key(0), iterations=generations, chunk=generations,  # noqa: E731
                            progress=False).best_cost

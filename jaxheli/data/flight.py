@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..model import INPUT_NAMES, MEASURABLE, STATE_UNITS
+from ..model import FLAPPING, INPUT_NAMES, MEASURABLE, STATE_UNITS
 
 
 class FlightDataError(ValueError):
@@ -139,3 +139,8 @@ class FlightData:
             f"FlightData(source={self.source!r}, N={self.n_samples}, dt={self.dt:.6g} s, "
             f"duration={self.duration:.4g} s, outputs={self.output_names})"
         )
+
+
+def default_outputs(flight: FlightData) -> tuple[str, ...]:
+    """The flight's measured channels without the flapping columns (:data:`jaxheli.model.FLAPPING`)."""
+    return tuple(c for c in flight.output_names if c not in FLAPPING)

@@ -15,10 +15,10 @@ from typing import Any
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jaxtyping import Key
 
 from .._types import Array, ArrayLike, Bool, Float, Int
+from ..bounds import Bounds
 
 CostFn = Callable[[Float[Array, "pop dim"]], Float[Array, "pop"]]
 """A batched cost: ``cost_fn(thetas[P, dim]) -> costs[P]``, lower is better, NaN/inf allowed."""
@@ -71,14 +71,7 @@ class AbstractPopulationOptimizer(eqx.Module):
     iterations: eqx.AbstractVar[int]
 
     def __check_init__(self) -> None:
-        if self.lower.ndim != 1 or self.lower.shape != self.upper.shape or self.lower.size == 0:
-            raise ValueError(f"lower and upper must be equal non-empty 1-D shapes, got {self.lower.shape} "
-                             f"and {self.upper.shape}")
-        if not isinstance(self.lower, jax.core.Tracer):
-            lo, hi = np.asarray(self.lower), np.asarray(self.upper)
-            if not (np.isfinite(lo).all() and np.isfinite(hi).all() and (lo <= hi).all()):
-                bad = np.flatnonzero(~(np.isfinite(lo) & np.isfinite(hi) & (lo <= hi)))
-                raise ValueError(f"bounds must be finite with lower <= upper; bad axes {bad.tolist()}")
+        Bounds(self.lower, self.upper)
         if self.iterations < 1:
             raise ValueError(f"iterations must be >= 1, got {self.iterations}")
 
@@ -92,12 +85,16 @@ class AbstractPopulationOptimizer(eqx.Module):
         """Axes the search may move (``upper > lower``)."""
         return self.upper > self.lower
 
+    @property
+    def bounds(self) -> Bounds:
+        """The search box."""
+        return Bounds(self.lower, self.upper)
+
     def to_theta(self, unit: Float[Array, "*batch dim"]) -> Float[Array, "*batch dim"]:
         """Unit-box coordinates -> physical values, clipped so rounding never leaves the box."""
         shape = unit.shape
-        lower = jnp.broadcast_to(self.lower, shape)
-        upper = jnp.broadcast_to(self.upper, shape)
-        return jnp.clip(lower + unit * (upper - lower), lower, upper)
+        return jnp.clip(self.bounds.from_unit(unit), jnp.broadcast_to(self.lower, shape),
+                        jnp.broadcast_to(self.upper, shape))
 
     def uniform(self, key: RawKey, n: int) -> Float[Array, "n dim"]:
         """``n`` uniform points of the unit box (pinned axes 0)."""

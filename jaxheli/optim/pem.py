@@ -6,7 +6,7 @@ channels. The predictor is the multiple-shooting simulator (:func:`jaxheli.make_
 ``segment``): it restarts from the measured states every ``segment`` seconds, so an open-loop unstable
 hover model still gives bounded residuals. The solve is one ``optimistix.least_squares`` call
 (Levenberg-Marquardt or Gauss-Newton) on the free parameters in the unit box coordinates of
-:mod:`jaxheli.optim._box` (each axis normalised to its bound width). Bounds: the residuals carry a
+:class:`jaxheli.bounds.Bounds` (each axis normalised to its bound width). Bounds: the residuals carry a
 penalty ``_PENALTY (u - clip(u))`` on the distance outside the box, so the solver overshoots a bound only
 slightly, and its answer is clipped into the box. Unlike a sigmoid map ``lower + width sigmoid(z)``, this
 keeps unit slope at and near a bound (a sigmoid flattens there and froze parameters that started within
@@ -29,12 +29,11 @@ import numpy as np
 import optimistix as optx
 
 from .._types import Array, ArrayLike, Float
+from ..bounds import Bounds, Free
 from ..cost import paper_cost, pearson
-from ..sim.discretize import Hold
 from ..data.flight import FlightData
-from ..model import G_SI, N_PARAMS, PARAM_NAMES
-from ..sim.simulate import InitialState, Simulator, make_simulator
-from ._box import Free, clip_unit, free_mask, from_unit, midpoint, to_unit
+from ..model import N_PARAMS, PARAM_NAMES
+from ..problem import Problem, as_problem
 
 Solver = Literal["lm", "gn"]
 
@@ -45,25 +44,20 @@ _PENALTY = 1e3
 """Weight of the distance outside the box (unit coordinates) in the residuals."""
 
 
-class _Problem(eqx.Module):
-    """One flight's targets under fixed simulator settings, and the residual vectors of simulated outputs."""
+def pem_residuals(problem: Problem, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch Nk"]:
+    """Normalised, divergence-safe errors ``(y - meas) / std(meas)``, flattened (time-major)."""
+    err = (y - jnp.broadcast_to(problem.target, y.shape)) / jnp.broadcast_to(problem.scale, y.shape)
+    return _compress(err).reshape(y.shape[:-2] + (-1,))
 
-    sim: Simulator
-    target: Float[Array, "N k"]
-    scale: Float[Array, "k"]
 
-    def pem(self, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch Nk"]:
-        """Normalised, divergence-safe errors ``(y - meas) / std(meas)``, flattened (time-major)."""
-        err = (y - jnp.broadcast_to(self.target, y.shape)) / jnp.broadcast_to(self.scale, y.shape)
-        return _compress(err).reshape(y.shape[:-2] + (-1,))
+def pearson_residuals(problem: Problem, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch k"]:
+    """``1 - rho`` per channel: its sum of squares is the paper's cost (Eq. 7)."""
+    return 1.0 - pearson(y, problem.target)
 
-    def pearson(self, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch k"]:
-        """``1 - rho`` per channel: its sum of squares is the paper's cost (Eq. 7)."""
-        return 1.0 - pearson(y, self.target)
 
-    def residuals(self, theta: Float[Array, "40"]) -> Float[Array, " Nk"]:
-        """PEM residuals of one parameter vector."""
-        return self.pem(self.sim(theta))
+def residuals(problem: Problem, theta: Float[Array, "40"]) -> Float[Array, " Nk"]:
+    """PEM residuals of one parameter vector."""
+    return pem_residuals(problem, problem.sim(theta))
 
 
 def _compress(r: Array) -> Array:
@@ -74,26 +68,23 @@ def _compress(r: Array) -> Array:
     return jnp.where(mag <= _BIG, r, jnp.sign(r) * tail)
 
 
-def _problem(
-    flight: FlightData,
-    outputs: tuple[str, ...] | list[str] | None,
-    segment: float | None,
-    hold: Hold,
-    x0: InitialState,
-    g: float,
-) -> _Problem:
-    # The step-by-step scan: under linearise/vmap/transpose it compiles ~30 % faster than "blocked".
-    sim = make_simulator(flight, outputs=outputs, segment=segment, hold=hold, x0=x0, g=g, method="scan")
-    target = flight.select(sim.outputs).outputs
-    std = target.std(axis=0)
-    flat = [c for c, s in zip(sim.outputs, std) if not s > 0]
+PEM_DEFAULTS: dict[str, Any] = {"segment": 1.0, "x0": "measured"}
+"""PEM's predictor when it is handed a flight: restarts from the measured states every second."""
+
+
+def fitted_problem(data: FlightData | Problem, defaults: dict[str, Any] | None = None, **settings: Any) -> Problem:
+    """The problem a least-squares engine fits: :func:`~jaxheli.problem.as_problem` on the step-by-step scan
+    simulator (under linearise/vmap/transpose it compiles ~30 % faster than "blocked"), with a clear error
+    when a fitted channel is constant (its normalised residual is undefined)."""
+    problem = as_problem(data, defaults, **settings).variant(simulator="scan")
+    flat = problem.constant_channels()
     if flat:
-        raise ValueError(f"{flight.source}: measured channel(s) {flat} are constant; drop them from outputs")
-    return _Problem(sim, jnp.asarray(target), jnp.asarray(std))
+        raise ValueError(f"{problem.source}: measured channel(s) {flat} are constant; drop them from outputs")
+    return problem
 
 
-def _start(start: Float[ArrayLike, "40"] | None) -> np.ndarray:
-    theta = midpoint() if start is None else np.asarray(start, dtype=np.float64)
+def _start(start: Float[ArrayLike, "40"] | None, bounds: Bounds) -> np.ndarray:
+    theta = bounds.midpoint() if start is None else np.asarray(start, dtype=np.float64)
     if theta.shape != (N_PARAMS,) or not np.all(np.isfinite(theta)):
         raise ValueError(f"start must be 40 finite parameters, got shape {theta.shape}")
     return theta
@@ -110,7 +101,7 @@ class _Boxed(eqx.Module):
     the answer is clipped into the box.
     """
 
-    problem: _Problem
+    problem: Problem
     base: Float[Array, "40"]
     free: tuple[bool, ...] = eqx.field(static=True)
     objective: Objective = eqx.field(static=True)
@@ -118,19 +109,20 @@ class _Boxed(eqx.Module):
     def theta(self, u: Float[Array, "free"]) -> Float[Array, "40"]:
         """Physical parameters: the free axes from ``u`` (unclipped), the others from ``base``."""
         mask = np.array(self.free)
-        unit = to_unit(self.base).at[np.flatnonzero(mask)].set(u)
-        return jnp.where(mask, from_unit(unit), self.base)
+        bounds = self.problem.bounds
+        unit = bounds.to_unit(self.base).at[np.flatnonzero(mask)].set(u)
+        return jnp.where(mask, bounds.from_unit(unit), self.base)
 
     def u0(self) -> Float[Array, "free"]:
-        return to_unit(self.base)[np.flatnonzero(np.array(self.free))]
+        return self.problem.bounds.to_unit(self.base)[np.flatnonzero(np.array(self.free))]
 
     def of_outputs(self, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch m"]:
-        return getattr(self.problem, self.objective)(y)
+        return (pem_residuals if self.objective == "pem" else pearson_residuals)(self.problem, y)
 
 
 def _residual(u: Array, boxed: _Boxed) -> Array:
     fit = boxed.of_outputs(boxed.problem.sim(boxed.theta(u)))
-    return jnp.concatenate([fit, _PENALTY * (u - clip_unit(u))])
+    return jnp.concatenate([fit, _PENALTY * (u - Bounds.clip_unit(u))])
 
 
 @eqx.filter_jit
@@ -143,12 +135,12 @@ def _solve(
     together in one batched run (one copy of the simulator in the compiled program).
     """
     sol = optx.least_squares(_residual, solver, boxed.u0(), args=boxed, max_steps=max_steps, throw=False)
-    pair = jnp.stack([boxed.base, boxed.theta(clip_unit(sol.value))])
+    pair = jnp.stack([boxed.base, boxed.theta(Bounds.clip_unit(sol.value))])
     problem = boxed.problem
     y = problem.sim(pair)
     loss = jnp.sum(boxed.of_outputs(y) ** 2, axis=-1)
     better = jnp.all(jnp.isfinite(pair[1])) & (loss[1] <= loss[0])
-    cost, rss = paper_cost(y, problem.target), jnp.sum(problem.pem(y) ** 2, axis=-1)
+    cost, rss = paper_cost(y, problem.target), jnp.sum(pem_residuals(problem, y) ** 2, axis=-1)
     pick = jnp.where(better, 1, 0)
     return pair[pick], cost[0], cost[pick], rss[0], rss[pick], sol.stats["num_steps"], sol.result
 
@@ -239,57 +231,52 @@ def _result(raw, base: np.ndarray, mask: np.ndarray, settings: dict[str, Any]) -
 
 
 def pem(
-    flight: FlightData,
+    data: FlightData | Problem,
     *,
     start: Float[ArrayLike, "40"] | None = None,
-    outputs: tuple[str, ...] | list[str] | None = None,
-    segment: float | None = 1.0,
-    hold: Hold = "zoh",
-    x0: InitialState = "measured",
-    g: float = G_SI,
     solver: Solver = "lm",
     max_steps: int = 200,
     free: Free = None,
     rtol: float = 1e-8,
     atol: float = 1e-8,
+    **settings: Any,
 ) -> PEMResult:
-    """Fit the hover model to ``flight`` by prediction-error minimisation (one jitted optimistix solve).
+    """Fit the hover model to a record by prediction-error minimisation (one jitted optimistix solve).
 
     Args:
-        flight: the record; its sticks drive the predictor, its outputs are the targets.
+        data: a :class:`~jaxheli.problem.Problem`, or a flight (its problem under PEM's defaults,
+            :data:`PEM_DEFAULTS`: the predictor restarts from the measured states every 1 s); its sticks
+            drive the predictor, its outputs are the targets.
         start: initial ``theta[40]`` (default: the middle of the bounds, pinned parameters at their value);
             returned unchanged where the solver does not lower the objective.
-        outputs: channels fitted (default: every output of the flight).
-        segment: predictor restart interval, s (``None``: one open-loop run, the paper's simulation).
-        hold, x0, g: simulator settings (:func:`jaxheli.make_simulator`); ``x0="measured"`` starts the
-            predictor from the first measured states.
         solver: ``"lm"`` (Levenberg-Marquardt, default) or ``"gn"`` (Gauss-Newton).
         max_steps: solver step limit; reaching it is reported (``success=False``), not raised. A static
             argument: each new value compiles the solver again (~10-15 s on a 2-core CPU).
-        free: free parameters (mask or names; default every non-pinned one); the rest stay at ``start``.
+        free: free parameters (mask or names; default every axis the bounds leave free); the rest stay at
+            ``start``.
         rtol, atol: optimistix's Cauchy termination tolerances on the unit coordinates and the loss.
+        settings: :class:`~jaxheli.problem.Settings` fields: ``outputs`` (default: the measured channels
+            without a, b), ``segment`` (s; ``None``: one open-loop run, the paper's simulation), ``hold``,
+            ``x0`` (``"measured"`` starts the predictor from the first measured states), ``g``, and the box
+            ``lower``/``upper`` the answer stays in.
     """
-    return _fit(flight, start, "pem", outputs, segment, hold, x0, g, solver, max_steps, free, rtol, atol)
+    problem = fitted_problem(data, PEM_DEFAULTS, **settings)
+    return fit(problem, start, "pem", solver, max_steps, free, rtol, atol)
 
 
-def _fit(
-    flight: FlightData,
+def fit(
+    problem: Problem,
     start: Float[ArrayLike, "40"] | None,
     objective: Objective,
-    outputs: tuple[str, ...] | list[str] | None,
-    segment: float | None,
-    hold: Hold,
-    x0: InitialState,
-    g: float,
     solver: Solver,
     max_steps: int,
     free: Free,
     rtol: float,
     atol: float,
 ) -> PEMResult:
-    """Least squares on ``objective``'s residuals over the free parameters (shared by pem and polish)."""
-    problem = _problem(flight, outputs, segment, hold, x0, g)
-    base, mask = _start(start), free_mask(free)
+    """Least squares on ``objective``'s residuals over the free parameters, in ``problem``'s box (shared by
+    :func:`pem` and :func:`~jaxheli.optim.polish.polish`)."""
+    base, mask = _start(start, problem.bounds), problem.bounds.free_mask(free)
     boxed = _Boxed(problem, jnp.asarray(base), tuple(bool(m) for m in mask), objective)
     raw = _solve(boxed, _least_squares(solver, rtol, atol), int(max_steps))
     settings = {"objective": objective, "solver": solver, "max_steps": int(max_steps), "rtol": rtol, "atol": atol,

@@ -10,40 +10,38 @@ solver does not improve it, the start comes back unchanged.
 
 from __future__ import annotations
 
+from typing import Any
+
 from .._types import ArrayLike, Float
-from ..sim.discretize import Hold
+from ..bounds import Free
 from ..data.flight import FlightData
-from ..model import G_SI
-from ..sim.simulate import InitialState
-from ._box import Free
-from .pem import Objective, PEMResult, Solver, _fit
+from ..problem import Problem
+from .pem import Objective, PEMResult, Solver, fit, fitted_problem
 
 
 def polish(
     theta0: Float[ArrayLike, "40"],
-    flight: FlightData,
+    data: FlightData | Problem,
     *,
     objective: Objective = "pearson",
-    outputs: tuple[str, ...] | list[str] | None = None,
-    segment: float | None = None,
-    hold: Hold = "zoh",
-    x0: InitialState = "zero",
-    g: float = G_SI,
     solver: Solver = "lm",
     max_steps: int = 100,
     free: Free = None,
     rtol: float = 1e-8,
     atol: float = 1e-8,
+    **settings: Any,
 ) -> PEMResult:
-    """Refine ``theta0[40]`` on ``flight`` under the metaheuristic's simulation settings.
+    """Refine ``theta0[40]`` on a record under the metaheuristic's simulation settings.
 
-    The defaults are the paper's simulation (one open-loop run from rest, ZOH); pass the ``segment``,
-    ``x0``, ``hold`` and ``outputs`` the metaheuristic used so the objective is the same. ``cost_start`` /
-    ``cost`` of the result are the paper's cost of that simulation before and after; ``rss_start`` /
-    ``rss`` the prediction-error sum of squares. The guard "never worse" applies to the objective
-    polished (the paper's cost for ``"pearson"``, the sum of squares for ``"pem"``). ``solver``,
-    ``max_steps``, ``free``, ``rtol``, ``atol`` as in :func:`jaxheli.optim.pem.pem`.
+    ``data`` is the metaheuristic's :class:`~jaxheli.problem.Problem`, or a flight with
+    :class:`~jaxheli.problem.Settings` fields in ``settings`` (default: the paper's simulation, one open-loop
+    run from rest, ZOH; pass the ``segment``, ``x0``, ``hold`` and ``outputs`` the metaheuristic used so the
+    objective is the same; ``lower``/``upper`` the box). ``cost_start`` / ``cost`` of the result are the paper's
+    cost of that simulation before and after; ``rss_start`` / ``rss`` the prediction-error sum of squares. The
+    guard "never worse" applies to the objective polished (the paper's cost for ``"pearson"``, the sum of
+    squares for ``"pem"``). ``solver``, ``max_steps``, ``free``, ``rtol``, ``atol`` as in
+    :func:`jaxheli.optim.pem.pem`.
     """
     if objective not in ("pearson", "pem"):
         raise ValueError(f"polish: objective must be 'pearson' or 'pem', got {objective!r}")
-    return _fit(flight, theta0, objective, outputs, segment, hold, x0, g, solver, max_steps, free, rtol, atol)
+    return fit(fitted_problem(data, **settings), theta0, objective, solver, max_steps, free, rtol, atol)

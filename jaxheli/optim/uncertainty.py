@@ -26,12 +26,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, ArrayLike, Bool, Float
-from ..sim.discretize import Hold
+from ..bounds import Bounds, Free
 from ..data.flight import FlightData
-from ..model import G_SI, N_PARAMS, PARAM_NAMES
-from ..sim.simulate import InitialState
-from ._box import Free, free_mask
-from .pem import _problem
+from ..model import N_PARAMS, PARAM_NAMES
+from ..problem import Problem
+from .pem import PEM_DEFAULTS, fitted_problem, residuals
 
 
 @dataclasses.dataclass(frozen=True)
@@ -101,17 +100,19 @@ def from_residuals(
     free: Free = None,
     rcond: float = 1e-8,
     null_tol: float = 1e-6,
+    bounds: Bounds | None = None,
 ) -> Uncertainty:
     """Standard errors of ``theta`` for a residual function ``fn(theta[40]) -> r[m]`` (jit-traceable).
 
-    ``free`` (mask or names, default every non-pinned parameter) are the estimated ones; ``rcond`` is the
+    ``free`` (mask or names, default every axis ``bounds`` leave free; default bounds: the authors') are the
+    estimated ones; ``rcond`` is the
     relative singular-value cutoff of the pseudo-inverse, ``null_tol`` the weight in a dropped direction
     that marks a parameter unresolved.
     """
     theta = np.asarray(theta, dtype=np.float64)
     if theta.shape != (N_PARAMS,):
         raise ValueError(f"from_residuals: theta must have shape (40,), got {theta.shape}")
-    mask = free_mask(free)
+    mask = (bounds or Bounds()).free_mask(free)
     idx = np.flatnonzero(mask)
     r, J = (np.asarray(v, dtype=np.float64) for v in _jacobian(fn, jnp.asarray(theta), jnp.asarray(idx)))
     if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J))):
@@ -146,25 +147,25 @@ def from_residuals(
 
 
 def standard_errors(
-    flight: FlightData,
+    data: FlightData | Problem,
     theta: Float[ArrayLike, "40"],
     *,
-    outputs: tuple[str, ...] | list[str] | None = None,
-    segment: float | None = 1.0,
-    hold: Hold = "zoh",
-    x0: InitialState = "measured",
-    g: float = G_SI,
     free: Free = None,
     rcond: float = 1e-8,
     null_tol: float = 1e-6,
+    **settings: Any,
 ) -> Uncertainty:
-    """Standard errors of ``theta`` (an optimum of :func:`jaxheli.optim.pem.pem`) on ``flight``.
+    """Standard errors of ``theta`` (an optimum of :func:`jaxheli.optim.pem.pem`) on a record.
 
-    The residuals are PEM's normalised output errors under the same simulator settings (``outputs``,
-    ``segment`` s, ``hold``, ``x0``, ``g``); ``free``, ``rcond``, ``null_tol`` as in :func:`from_residuals`.
+    The residuals are PEM's normalised output errors on ``data``: a :class:`~jaxheli.problem.Problem`, or a
+    flight under PEM's defaults with :class:`~jaxheli.problem.Settings` fields in ``settings`` (``outputs``,
+    ``segment`` s, ``hold``, ``x0``, ``g``); ``free`` defaults to every axis the problem's bounds leave free;
+    ``rcond``, ``null_tol`` as in :func:`from_residuals`.
     """
-    problem = _problem(flight, outputs, segment, hold, x0, g)
-    return from_residuals(problem.residuals, theta, free=free, rcond=rcond, null_tol=null_tol)
+    problem = fitted_problem(data, PEM_DEFAULTS, **settings)
+    mask = problem.bounds.free_mask(free)
+    return from_residuals(eqx.Partial(residuals, problem), theta, free=mask, rcond=rcond, null_tol=null_tol,
+                          bounds=problem.bounds)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -196,7 +197,7 @@ class Identifiability:
 
 
 def identifiable(
-    flight: FlightData, theta: Float[ArrayLike, "40"], *, threshold: float = 0.1, **options: Any
+    data: FlightData | Problem, theta: Float[ArrayLike, "40"], *, threshold: float = 0.1, **options: Any
 ) -> Identifiability:
     """Parameters whose relative standard error at ``theta`` is at most ``threshold`` (0.1 = 10 %).
 
@@ -204,7 +205,7 @@ def identifiable(
     (with the parameters it trades off against), too uncertain (with its most correlated partner), or
     its relative standard error.
     """
-    unc = standard_errors(flight, theta, **options)
+    unc = standard_errors(data, theta, **options)
     flags = unc.resolved & (unc.relative <= threshold)
     return Identifiability(
         names=tuple(n for n, f in zip(PARAM_NAMES, flags) if f),

@@ -7,6 +7,9 @@ unit initial state. ``x0`` is the least-squares fit of ``G x0`` to ``measured - 
 
 from __future__ import annotations
 
+import dataclasses
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -14,28 +17,42 @@ import numpy as np
 from .._types import Array, Float
 from ..data.flight import FlightData
 from ..model import N_STATES
-from .simulate import make_simulator
+from .simulate import Simulator, make_simulator
 
 
 def estimate_x0(
-    theta: Float[Array, "40"], flight: FlightData, *, horizon: float | None = None, **options
+    theta: Float[Array, "40"], data: FlightData | Any, *, horizon: float | None = None, **options
 ) -> Float[np.ndarray, "13"]:
-    """Initial 13-state vector that best explains ``flight``'s outputs under ``theta``.
+    """Initial 13-state vector that best explains the record's outputs under ``theta``.
 
-    ``options`` are :func:`jaxheli.make_simulator`'s (``outputs``, ``hold``, ``g``); the fit uses a single
+    ``data`` is a flight with :func:`jaxheli.make_simulator`'s ``options`` (``outputs``, ``hold``, ``g``), or
+    a :class:`jaxheli.problem.Problem` (no options: its channels, hold and g hold). The fit uses a single
     open-loop run. ``horizon`` (s) limits the fit to the start of the record, which keeps the problem
     well conditioned for open-loop-unstable models on long records.
     """
     options = {k: v for k, v in options.items() if k not in ("x0", "segment", "reset")}
+    if isinstance(data, FlightData):
+        sim = make_simulator(data, **options)
+        target = jnp.asarray(data.select(sim.outputs).outputs)
+    elif options:
+        raise ValueError(f"estimate_x0: options {sorted(options)} go with a flight, not a Problem")
+    else:
+        sim, target = data.sim, data.target
+    return np.asarray(_fit_x0(jnp.asarray(theta), open_loop(sim), target, horizon))
+
+
+def open_loop(sim: Simulator) -> Simulator:
+    """``sim`` as one open-loop run from rest (no restarts), its channels, hold and g kept."""
+    return sim.configure(outputs=sim.outputs, g=sim.g, hold=sim.hold)
+
+
+def _fit_x0(theta: Array, sim: Simulator, target: Array, horizon: float | None) -> Array:
     if horizon is not None:
-        n = max(2, min(flight.n_samples, int(round(horizon / flight.dt)) + 1))
-        flight = flight.replace(time=flight.time[:n], inputs=flight.inputs[:n], outputs=flight.outputs[:n])
-    sim = make_simulator(flight, **options)
-    target = jnp.asarray(flight.select(sim.outputs).outputs)
-    theta = jnp.asarray(theta)
+        n = max(2, min(sim.inputs.shape[0], int(round(horizon / sim.dt)) + 1))
+        sim = dataclasses.replace(sim, inputs=sim.inputs[:n], measured_states=sim.measured_states[:n])
+        target = target[:n]
     forced = sim(theta)
-    zero_inputs = flight.replace(inputs=np.zeros_like(flight.inputs))
-    free = make_simulator(zero_inputs, **options)
+    free = dataclasses.replace(sim, inputs=jnp.zeros_like(sim.inputs))
 
     def unit_response(e: Array) -> Array:
         return free.replace_x0(e)(theta)
@@ -45,4 +62,4 @@ def estimate_x0(
     rhs = (target - forced).reshape(-1)
     ok = jnp.all(jnp.isfinite(G)) & jnp.all(jnp.isfinite(rhs))
     x0, *_ = jnp.linalg.lstsq(jnp.where(ok, G, 0.0), jnp.where(ok, rhs, 0.0))
-    return np.asarray(x0)
+    return x0

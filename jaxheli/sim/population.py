@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import equinox as eqx
 import jax.numpy as jnp
 
@@ -35,12 +37,34 @@ def simulator_cost(sim: Simulator, thetas: Array, target: Array, *, shard: bool 
     return cost.reshape(thetas.shape[:-1])
 
 
-def population_cost(thetas: Population, flight: FlightData, **options) -> Float[Array, "pop"]:
+class PopulationCost(eqx.Module):
+    """``thetas[P, 40] -> cost[P]``: the paper's cost on one flight, scored in ``precision`` (the fastest kernel
+    the simulator has, :func:`simulator_cost`) and returned in the candidates' dtype.
+
+    A pytree (the flight's arrays are leaves), so it stays traced inside an optimiser's scan and one compiled
+    run serves every flight of the same length. ``precision`` ``None`` scores in the candidates' dtype.
+    """
+
+    sim: Simulator
+    target: Float[Array, "N k"]
+    precision: str | None = eqx.field(static=True, default=None)
+
+    def __call__(self, thetas: Population) -> Float[Array, "P"]:
+        thetas = jnp.asarray(thetas)
+        dtype = thetas.dtype if self.precision is None else self.precision
+        return simulator_cost(self.sim, thetas.astype(dtype), self.target.astype(dtype)).astype(thetas.dtype)
+
+
+def population_cost(thetas: Population, data: FlightData | Any, **options) -> Float[Array, "pop"]:
     """The paper's cost (Eq. 7) for every candidate of ``thetas[P, 40]``, one jitted call.
 
-    Options are those of :func:`jaxheli.make_simulator` (``outputs``, ``hold``, ``segment``, ...); the cost
-    runs over the chosen output channels. Diverging candidates get the worst cost ``4 k``.
+    ``data`` is a flight, with the options of :func:`jaxheli.make_simulator` (``outputs``, ``hold``,
+    ``segment``, ...; the cost runs over the chosen output channels), or a :class:`jaxheli.problem.Problem`
+    (no options: its settings hold). Diverging candidates get the worst cost ``4 k``.
     """
-    sim = make_simulator(flight, **options)
-    target = jnp.asarray(flight.select(sim.outputs).outputs)
-    return simulator_cost(sim, jnp.asarray(thetas), target)
+    if isinstance(data, FlightData):
+        sim = make_simulator(data, **options)
+        return simulator_cost(sim, jnp.asarray(thetas), jnp.asarray(data.select(sim.outputs).outputs))
+    if options:
+        raise ValueError(f"population_cost: options {sorted(options)} go with a flight, not a Problem")
+    return data.population_cost()(jnp.asarray(thetas))

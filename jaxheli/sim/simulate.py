@@ -25,7 +25,7 @@ from .._types import Array, Float, Params
 from .blocked import Plan, blocked_rollout, choose_block, make_plan, population_discrete
 from .discretize import Hold, discretize
 from ..data.flight import FlightData
-from ..model import G_SI, MEASURABLE, N_STATES, build_ab, output_indices
+from ..model import FLAPPING, G_SI, MEASURABLE, N_STATES, build_ab, output_indices
 
 InitialState = Literal["zero", "measured"]
 Reset = Literal["carry", "zero"]
@@ -123,6 +123,58 @@ class Simulator(eqx.Module):
         """The same simulator started from the given initial state."""
         return dataclasses.replace(self, x0=jnp.asarray(x0), initial="given")
 
+    def configure(
+        self,
+        *,
+        outputs: tuple[str, ...] | list[str],
+        g: float = G_SI,
+        hold: Hold = "zoh",
+        x0: InitialState | Float[np.ndarray, "13"] = "zero",
+        segment: float | None = None,
+        reset: Reset = "carry",
+        method: Method = "auto",
+        block: int | None = None,
+    ) -> Simulator:
+        """The same flight under other settings (those of :func:`make_simulator`; ``outputs`` are state names)."""
+        if hold not in ("zoh", "foh"):
+            raise ValueError(f"hold must be 'zoh' or 'foh', got {hold!r}")
+        if reset not in ("carry", "zero"):
+            raise ValueError(f"reset must be 'carry' or 'zero', got {reset!r}")
+        if isinstance(x0, str):
+            if x0 not in ("zero", "measured"):
+                raise ValueError(f"x0 must be 'zero', 'measured' or a 13-vector, got {x0!r}")
+            x0_arr, initial = None, x0
+        else:
+            x0_arr = jnp.asarray(x0)
+            if x0_arr.shape != (N_STATES,):
+                raise ValueError(f"x0 must have shape (13,), got {x0_arr.shape}")
+            initial = "given"
+        if segment is None:
+            seg = 0
+        else:
+            seg = int(round(segment / self.dt))
+            if seg < 1:
+                raise ValueError(f"segment must be at least one sample ({self.dt} s), got {segment} s")
+        if method not in ("auto", "scan", "blocked"):
+            raise ValueError(f"method must be 'auto', 'scan' or 'blocked', got {method!r}")
+        if method != "scan":
+            L = choose_block(seg) if block is None else int(block)
+            if L is None or (L < 1 or (seg > 0 and seg % L)):
+                if method == "blocked":
+                    raise ValueError(
+                        f"method='blocked' needs a block length dividing the segment ({seg} samples); "
+                        f"got block={block}"
+                    )
+                method, L = "scan", 0
+            else:
+                method = "blocked"
+        else:
+            L = 0
+        return dataclasses.replace(
+            self, x0=x0_arr, outputs=tuple(outputs), g=float(g), hold=hold, initial=initial, segment_samples=seg,
+            reset=reset, method=method, block=L,
+        )
+
     def describe(self) -> dict[str, object]:
         """The settings in words and numbers, for result files."""
         if self.segment_samples > 0:
@@ -179,62 +231,20 @@ def make_simulator(
     missing = [c for c in names if c not in flight.output_names]
     if missing:
         raise ValueError(f"{flight.source}: output channel(s) {missing} not in the flight {flight.output_names}")
-    if hold not in ("zoh", "foh"):
-        raise ValueError(f"hold must be 'zoh' or 'foh', got {hold!r}")
-    if reset not in ("carry", "zero"):
-        raise ValueError(f"reset must be 'carry' or 'zero', got {reset!r}")
     measured = np.zeros((flight.n_samples, N_STATES))
     state_cols = output_indices(flight.output_names)
     # a and b in the authors' files are stick multiples, not measurements: never restart from them.
-    real = [i for i, c in enumerate(flight.output_names) if c in MEASURABLE and c not in ("a", "b")]
+    real = [i for i, c in enumerate(flight.output_names) if c in MEASURABLE and c not in FLAPPING]
     measured[:, state_cols[real]] = flight.outputs[:, real]
     mask = np.zeros(N_STATES, bool)
     mask[state_cols[real]] = True
-    if isinstance(x0, str):
-        if x0 not in ("zero", "measured"):
-            raise ValueError(f"x0 must be 'zero', 'measured' or a 13-vector, got {x0!r}")
-        x0_arr, initial = None, x0
-    else:
-        x0_arr = jnp.asarray(x0)
-        if x0_arr.shape != (N_STATES,):
-            raise ValueError(f"x0 must have shape (13,), got {x0_arr.shape}")
-        initial = "given"
-    if segment is None:
-        seg = 0
-    else:
-        seg = int(round(segment / flight.dt))
-        if seg < 1:
-            raise ValueError(f"segment must be at least one sample ({flight.dt} s), got {segment} s")
-    if method not in ("auto", "scan", "blocked"):
-        raise ValueError(f"method must be 'auto', 'scan' or 'blocked', got {method!r}")
-    if method != "scan":
-        L = choose_block(seg) if block is None else int(block)
-        if L is None or (L < 1 or (seg > 0 and seg % L)):
-            if method == "blocked":
-                raise ValueError(
-                    f"method='blocked' needs a block length dividing the segment ({seg} samples); "
-                    f"got block={block}"
-                )
-            method, L = "scan", 0
-        else:
-            method = "blocked"
-    else:
-        L = 0
-    return Simulator(
-        inputs=jnp.asarray(flight.inputs),
-        measured_states=jnp.asarray(measured),
-        x0=x0_arr,
-        dt=flight.dt,
-        outputs=names,
-        measured_mask=tuple(bool(b) for b in mask),
-        g=float(g),
-        hold=hold,
-        initial=initial,
-        segment_samples=seg,
-        reset=reset,
-        method=method,
-        block=L,
+    raw = Simulator(
+        inputs=jnp.asarray(flight.inputs), measured_states=jnp.asarray(measured), x0=None, dt=flight.dt,
+        outputs=names, measured_mask=tuple(bool(b) for b in mask), g=float(g), hold=hold, initial="zero",
+        segment_samples=0, reset=reset,
     )
+    return raw.configure(outputs=names, g=g, hold=hold, x0=x0, segment=segment, reset=reset, method=method,
+                         block=block)
 
 
 @eqx.filter_jit

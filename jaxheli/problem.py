@@ -1,0 +1,189 @@
+"""What is solved, apart from how: one flight (or record), its settings and the arrays every engine needs.
+
+A :class:`Problem` is built once from a flight and a frozen, serialisable :class:`Settings` (scored channels,
+input hold, gravity, restart segment, initial-state rule, population precision, search box). It holds the
+simulator, the measured target, each channel's scale and the :class:`~jaxheli.bounds.Bounds`, and every engine
+and metric takes it: the population cost, PEM, the polish, the standard errors, :func:`jaxheli.evaluate`
+and the initial-state estimate (as optimistix separates the function solved from the solver). A variant
+under other simulation settings (:meth:`Problem.variant`, e.g. PEM's restart predictor) needs no flight.
+
+Every array is a pytree leaf and the settings are static, so problems of equally long flights share one
+compiled engine.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Literal
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from ._types import Array, Float
+from .bounds import Bounds
+from .data.flight import FlightData, default_outputs
+from .model import G_SI, LOWER, UPPER
+from .sim.discretize import Hold
+from .sim.population import PopulationCost
+from .sim.simulate import InitialState, Method, Simulator, make_simulator
+
+Precision = Literal["float32", "float64"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    """How a flight is simulated and scored; frozen and JSON-serialisable (:meth:`to_dict`, :meth:`from_dict`).
+
+    Attributes:
+        outputs: scored channels (``None``: the flight's measured channels without a, b).
+        hold: ``"zoh"`` or ``"foh"`` input hold.
+        g: gravity in the parameters' unit system, m/s^2.
+        segment: restart interval, s (multiple shooting); ``None`` for one run from the start (the paper).
+        x0: initial state of each run, ``"zero"`` (the paper) or ``"measured"``.
+        precision: arithmetic of the population cost (``None``: the session's precision).
+        lower, upper: search box, physical units, :data:`jaxheli.PARAM_NAMES` order (default: the authors').
+        simulator: ``"auto"``, ``"scan"`` or ``"blocked"`` (:func:`jaxheli.make_simulator`'s ``method``).
+    """
+
+    outputs: tuple[str, ...] | None = None
+    hold: Hold = "zoh"
+    g: float = G_SI
+    segment: float | None = None
+    x0: InitialState = "zero"
+    precision: Precision | None = None
+    lower: tuple[float, ...] = tuple(LOWER.tolist())
+    upper: tuple[float, ...] = tuple(UPPER.tolist())
+    simulator: Method = "auto"
+
+    def __post_init__(self) -> None:
+        if self.outputs is not None:
+            object.__setattr__(self, "outputs", tuple(self.outputs))
+        object.__setattr__(self, "lower", tuple(float(v) for v in np.asarray(self.lower).ravel()))
+        object.__setattr__(self, "upper", tuple(float(v) for v in np.asarray(self.upper).ravel()))
+        if self.precision not in (None, "float32", "float64"):
+            raise ValueError(f"precision must be 'float32', 'float64' or None, got {self.precision!r}")
+
+    @property
+    def bounds(self) -> Bounds:
+        """The search box as :class:`~jaxheli.bounds.Bounds`."""
+        return Bounds(np.asarray(self.lower), np.asarray(self.upper))
+
+    def replace(self, **changes: Any) -> Settings:
+        """A copy with some fields changed."""
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready values."""
+        out = dataclasses.asdict(self)
+        out["outputs"] = None if self.outputs is None else list(self.outputs)
+        out["lower"], out["upper"] = list(self.lower), list(self.upper)
+        return out
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> Settings:
+        """Inverse of :meth:`to_dict` (unknown keys are an error)."""
+        unknown = sorted(set(values) - {f.name for f in dataclasses.fields(cls)})
+        if unknown:
+            raise ValueError(f"Settings: unknown fields {unknown}")
+        return cls(**values)
+
+
+class Source:
+    """Where a problem's data came from, for messages. Equal to every other ``Source``, so problems of
+    different flights share compiled code."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Source)
+
+    def __hash__(self) -> int:
+        return 0
+
+    def __str__(self) -> str:
+        return self.text
+
+    def __repr__(self) -> str:
+        return f"Source({self.text!r})"
+
+
+class Problem(eqx.Module):
+    """One record under fixed :class:`Settings`: simulator, target ``[N, k]``, channel scales and bounds.
+
+    Build it with :func:`make_problem`. ``scale`` is each measured channel's standard deviation (the
+    normalisation of PEM's residuals and of the output-error metrics).
+    """
+
+    sim: Simulator
+    target: Float[Array, "N k"]
+    scale: Float[Array, "k"]
+    bounds: Bounds
+    settings: Settings = eqx.field(static=True)
+    source: Source = eqx.field(static=True)
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        """The scored channels."""
+        return self.sim.outputs
+
+    @property
+    def dt(self) -> float:
+        """Sample time, s."""
+        return self.sim.dt
+
+    @property
+    def n_samples(self) -> int:
+        """Record length ``N``."""
+        return int(self.target.shape[0])
+
+    def variant(self, **changes: Any) -> Problem:
+        """The same record under changed simulation settings (``hold``, ``g``, ``segment``, ``x0``,
+        ``simulator``) or precision and bounds; the scored channels cannot change (they need the flight)."""
+        if "outputs" in changes and tuple(changes["outputs"]) != self.outputs:
+            raise ValueError("Problem.variant: scored channels cannot change; build a new problem from the flight")
+        settings = self.settings.replace(**changes)
+        sim = self.sim.configure(outputs=self.outputs, g=settings.g, hold=settings.hold, x0=settings.x0,
+                                 segment=settings.segment, reset=self.sim.reset, method=settings.simulator)
+        return dataclasses.replace(self, sim=sim, bounds=settings.bounds, settings=settings)
+
+    def constant_channels(self) -> list[str]:
+        """Scored channels whose measurement never changes (no scale, no correlation)."""
+        return [c for c, s in zip(self.outputs, np.asarray(self.scale)) if not s > 0]
+
+    def population_cost(self) -> PopulationCost:
+        """``thetas[P, 40] -> cost[P]``, the paper's cost in the settings' precision (one jitted call)."""
+        return PopulationCost(self.sim, self.target, self.settings.precision)
+
+    def describe(self) -> dict[str, Any]:
+        """Settings and simulator in words and numbers, for result files."""
+        return {"source": str(self.source), "settings": self.settings.to_dict(), "simulator": self.sim.describe()}
+
+
+def make_problem(flight: FlightData, settings: Settings | None = None, **changes: Any) -> Problem:
+    """The :class:`Problem` of ``flight`` under ``settings`` (default :class:`Settings`) with ``changes``."""
+    settings = (settings or Settings()).replace(**changes)
+    names = default_outputs(flight) if settings.outputs is None else settings.outputs
+    settings = settings.replace(outputs=names)
+    sim = make_simulator(flight, outputs=names, g=settings.g, hold=settings.hold, x0=settings.x0,
+                         segment=settings.segment, method=settings.simulator)
+    target = flight.select(names).outputs
+    return Problem(sim, jnp.asarray(target), jnp.asarray(target.std(axis=0)), settings.bounds, settings,
+                   Source(flight.source))
+
+
+def as_problem(data: FlightData | Problem, defaults: dict[str, Any] | None = None, **settings: Any) -> Problem:
+    """The :class:`Problem` an engine works on.
+
+    A flight becomes the problem of ``Settings(**defaults)`` with ``settings`` (``outputs=None``: the flight's
+    measured channels); a problem is taken as it is, or as its :meth:`~Problem.variant` under ``settings``
+    (its scored channels stay; ``defaults`` are not applied to it).
+    """
+    if isinstance(data, Problem):
+        if settings.get("outputs") is None or tuple(settings["outputs"]) == data.outputs:
+            settings.pop("outputs", None)
+        return data.variant(**settings) if settings else data
+    if not isinstance(data, FlightData):
+        raise TypeError(f"expected a FlightData or a Problem, got {type(data).__name__}")
+    return make_problem(data, Settings(**(defaults or {})), **settings)
