@@ -34,7 +34,7 @@ from ..effects.plant import no_effect
 from .consistency import check
 from .localise_cli import localise_prediction
 from .predictor import TRACK, Predictor, make_predictor
-from .ranking import diagnose_effects
+from .ranking import diagnose_effects, predictor_pair
 
 _NOT_STATES = ("a", "b")
 """Flapping columns of the real logs: stick multiples, never diagnosed."""
@@ -75,15 +75,14 @@ def _predict(pred: Predictor, theta: Float[Array, "40"], etas: Float[Array, "C E
 
 
 def predictions(
-    theta: Float[np.ndarray, "40"], flight: FlightData, entries: Sequence[dict[str, Any]], *,
+    theta: Float[np.ndarray, "40"], flight: FlightData | Predictor, entries: Sequence[dict[str, Any]], *,
     segment: float = 2.0, g: float = G_SI, track: float = TRACK,
 ) -> Float[np.ndarray, "C+1 N k"]:
     """Predicted outputs of the base model (first) and of the base plus each ranking entry's fitted effect
     on ``flight`` (all its channels), by the same segment-wise predictor the ranking scores with (restart
-    filter level ``track``: the diagnosis's ``track``)."""
-    outputs = tuple(flight.output_names)
-    etas = [no_effect(outputs)] + [effect_eta(e["effect"], e["params"], outputs) for e in entries]
-    pred = make_predictor(flight, segment=segment, g=g, track=track)
+    filter level ``track``: the diagnosis's ``track``); given a predictor, its settings hold."""
+    pred = flight if isinstance(flight, Predictor) else make_predictor(flight, segment=segment, g=g, track=track)
+    etas = [no_effect(pred.outputs)] + [effect_eta(e["effect"], e["params"], pred.outputs) for e in entries]
     return np.asarray(_predict(pred, jnp.asarray(theta), jnp.asarray(np.stack(etas))))
 
 
@@ -130,14 +129,13 @@ def diagnose(
     train, validate = train.select(names), validate.select(names)
     consistency = [{**f.to_json(), "flight": role} for role, flight in (("train", train), ("validate", validate))
                    for f in check(flight)]
-    ranked = diagnose_effects(theta, train, validate, list(effects), top=top, segment=segment, g=g, **options)
-    track = ranked["track"]
-    localisation = _localise_base(theta, validate, segment, g, track)
+    preds = predictor_pair(theta, train, validate, segment=segment, g=g, track=options.pop("track", None))
+    ranked = diagnose_effects(theta, *preds, list(effects), top=top, **options)
+    localisation = _localise_base(theta, validate, preds[1], segment)
     if localise_train:
-        localisation["train"] = _localise_base(theta, train, segment, g, track)
+        localisation["train"] = _localise_base(theta, train, preds[0], segment)
     shown = [ranked["ranking"][0]] + ([ranked["combination"]] if ranked["combination"] else [])
-    gaps = np.asarray(nmse(predictions(theta, validate, shown, segment=segment, g=g, track=track),
-                           validate.outputs))
+    gaps = np.asarray(nmse(predictions(theta, preds[1], shown), validate.outputs))
     after = [{"effect": e["effect"], **_gap_block(gap, names)} for e, gap in zip(shown, gaps[1:])]
     return _json_ready({
         "model": model if isinstance(model, (str, Path)) else "given parameters",
@@ -153,12 +151,13 @@ def diagnose(
 
 
 def _localise_base(
-    theta: Float[np.ndarray, "40"], flight: FlightData, segment: float, g: float, track: float,
+    theta: Float[np.ndarray, "40"], flight: FlightData, pred: Predictor, segment: float,
 ) -> dict[str, Any]:
-    """Where the base model's segment-wise prediction misses ``flight`` (:func:`localise_prediction`)."""
-    base = predictions(theta, flight, [], segment=segment, g=g, track=track)[0]
+    """Where the base model's segment-wise prediction ``pred`` (restarts every ``segment`` s) misses
+    ``flight`` (:func:`localise_prediction`)."""
+    base = predictions(theta, pred, [])[0]
     simulation = {"predictor": "segment-wise, restarts from the Kalman-filtered state (jaxheli.gap.predictor)",
-                  "segment": segment, "track": track, "g": g, "hold": "zoh"}
+                  "segment": segment, "track": float(pred.track), "g": pred.g, "hold": "zoh"}
     return localise_prediction(theta, flight, base, flight.output_names, simulation)
 
 

@@ -18,6 +18,8 @@ real."""
 
 from __future__ import annotations
 
+import dataclasses
+
 from typing import Any
 
 import jax
@@ -107,8 +109,8 @@ def _evaluate(
 
 def rank_effects(
     base_theta: Float[ArrayLike, "40"],
-    train: FlightData,
-    validate: FlightData,
+    train: FlightData | Predictor,
+    validate: FlightData | Predictor,
     effects: tuple[str, ...] | list[str] = fx.ALL,
     *,
     segment: float = 2.0,
@@ -123,16 +125,17 @@ def rank_effects(
     ``segment`` (s) is the predictor's restart interval and ``track`` its restart filter's level (``None``:
     :func:`~jaxheli.gap.predictor.tune_track` on ``train``); ``min_shrink`` (%) the significance
     floor (see the module docstring); ``shape`` pads the batch of fits (:func:`~jaxheli.effects.registry.
-    candidate_arrays`). Both flights must carry the same output channels.
+    candidate_arrays`). Both flights must carry the same output channels; given as predictors
+    (:func:`predictor_pair`), ``segment``, ``g`` and ``track`` are theirs.
     """
-    train_pred, validate_pred = _predictors(base_theta, train, validate, segment, g, track)
+    train_pred, validate_pred = predictor_pair(base_theta, train, validate, segment=segment, g=g, track=track)
     return _evaluate(train_pred, validate_pred, base_theta, list(effects), False, max_steps, min_shrink, shape=shape)
 
 
 def combine_effects(
     base_theta: Float[ArrayLike, "40"],
-    train: FlightData,
-    validate: FlightData,
+    train: FlightData | Predictor,
+    validate: FlightData | Predictor,
     effects: tuple[str, ...] | list[str],
     *,
     segment: float = 2.0,
@@ -148,32 +151,33 @@ def combine_effects(
     ``track`` as in :func:`rank_effects`."""
     if not effects:
         raise ValueError("combine_effects: name at least one effect")
-    train_pred, validate_pred = _predictors(base_theta, train, validate, segment, g, track)
+    train_pred, validate_pred = predictor_pair(base_theta, train, validate, segment=segment, g=g, track=track)
     warm = None
     if ranking is not None:
         fitted = {e["effect"]: e["params"] for e in ranking}
-        warm = np.array([fitted[e][p.name]["value"] for e in effects for p in fx.params(e, train.output_names)])
+        warm = np.array([fitted[e][p.name]["value"] for e in effects for p in fx.params(e, train_pred.outputs)])
     return _evaluate(train_pred, validate_pred, base_theta, list(effects), True, max_steps, min_shrink, warm,
                      shape)[0]
 
 
 def diagnose_effects(
-    base_theta: Float[ArrayLike, "40"], train: FlightData, validate: FlightData,
-    effects: tuple[str, ...] | list[str] = fx.ALL, *, top: int = 3, **options,
+    base_theta: Float[ArrayLike, "40"], train: FlightData | Predictor, validate: FlightData | Predictor,
+    effects: tuple[str, ...] | list[str] = fx.ALL, *, top: int = 3, segment: float = 2.0, g: float = G_SI,
+    track: float | None = None, **options,
 ) -> dict[str, Any]:
     """``{"ranking", "combination", "verdict", "track"}``: the ranking, the joint fit of the (up to ``top``)
     significant effects (``None`` unless two or more), a sentence, and the restart filter's level both used
-    (tuned on ``train`` unless ``options`` give ``track``). With ``top > 1`` the single fits are padded to
-    the joint fit's width (:func:`~jaxheli.effects.registry.joint_shape`), so both run through one compiled
-    solver."""
-    shape = fx.joint_shape(effects, train.output_names, top) if top > 1 else None
-    options["track"] = _track(base_theta, train, options.get("segment", 2.0), options.get("g", G_SI),
-                              options.get("track"))
+    (tuned on ``train`` unless given). One predictor per flight (:func:`predictor_pair`) serves every fit.
+    With ``top > 1`` the single fits are padded to the joint fit's width
+    (:func:`~jaxheli.effects.registry.joint_shape`), so both run through one compiled solver; ``options``
+    (``max_steps``, ``min_shrink``) go to :func:`rank_effects`."""
+    train, validate = predictor_pair(base_theta, train, validate, segment=segment, g=g, track=track)
+    shape = fx.joint_shape(effects, train.outputs, top) if top > 1 else None
     ranking = rank_effects(base_theta, train, validate, effects, shape=shape, **options)
     chosen = [e["effect"] for e in ranking if e["significant"]][:top]
     combination = (combine_effects(base_theta, train, validate, chosen, ranking=ranking, shape=shape, **options)
                    if len(chosen) > 1 else None)
-    return {"ranking": ranking, "combination": combination, "verdict": verdict(ranking), "track": options["track"]}
+    return {"ranking": ranking, "combination": combination, "verdict": verdict(ranking), "track": float(train.track)}
 
 
 def verdict(ranking: list[dict[str, Any]]) -> str:
@@ -185,18 +189,19 @@ def verdict(ranking: list[dict[str, Any]]) -> str:
     return f"{e['effect']} ({e['summary']}): gap shrinks {e['shrink_pct']:.1f} % on the validation flight"
 
 
-def _predictors(
-    theta: Float[ArrayLike, "40"], train: FlightData, validate: FlightData, segment: float, g: float,
-    track: float | None,
+def predictor_pair(
+    theta: Float[ArrayLike, "40"], train: FlightData | Predictor, validate: FlightData | Predictor, *,
+    segment: float = 2.0, g: float = G_SI, track: float | None = None,
 ) -> tuple[Predictor, Predictor]:
+    """The predictors of the training and validation flights, built once each (predictors are taken as
+    they are): restarts every ``segment`` s, the restart filter at ``track`` (``None``: the level
+    :func:`~jaxheli.gap.predictor.tune_track` picks for ``theta`` on ``train``)."""
+    if isinstance(train, Predictor) and isinstance(validate, Predictor):
+        return train, validate
     if train.output_names != validate.output_names:
         raise ValueError(f"{validate.source}: output channels {validate.output_names} differ from the training "
                          f"flight's {train.output_names} ({train.source})")
-    track = _track(theta, train, segment, g, track)
-    return make_predictor(train, segment=segment, g=g, track=track), make_predictor(validate, segment=segment, g=g,
-                                                                                   track=track)
-
-
-def _track(theta: Float[ArrayLike, "40"], train: FlightData, segment: float, g: float, track: float | None) -> float:
-    """``track``, or when ``None`` the level :func:`~jaxheli.gap.predictor.tune_track` picks on ``train``."""
-    return tune_track(make_predictor(train, segment=segment, g=g), theta) if track is None else float(track)
+    train_pred = make_predictor(train, segment=segment, g=g)
+    level = tune_track(train_pred, theta) if track is None else float(track)
+    train_pred = dataclasses.replace(train_pred, track=jnp.asarray(level))
+    return train_pred, make_predictor(validate, segment=segment, g=g, track=level)
