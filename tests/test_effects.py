@@ -9,7 +9,7 @@ import scipy.signal
 
 from jaxheli import make_simulator
 from jaxheli.synth.excitation import Excitation
-from jaxheli.gap import augmented, effects
+from jaxheli.effects import plant as augmented, registry as effects
 from jaxheli.gap.kalman import gust_filter, riccati
 from jaxheli.cost import nmse
 from jaxheli.gap.predictor import TRACKS, make_predictor, noise_variance, tune_track
