@@ -33,23 +33,20 @@ _PAIRS = (("u", "v"), ("p", "q"), ("phi", "theta"))
 _UNITS = {"u": "m/s", "v": "m/s", "w": "m/s", "p": "rad/s", "q": "rad/s", "r": "rad/s", "phi": "rad", "theta": "rad"}
 
 
-def _per_axis(group: str, unit: str, start: float, bound: float) -> Callable[..., tuple[Param, ...]]:
-    """Parameters ``{group}_{axis}``, one per stick axis, acting through ``|eta|``."""
+def _per_axis(name: str, group: str, order: int, unit: str, start: float, bound: float, term: Term,
+              value: Callable[[np.random.Generator], float]) -> Effect:
+    """An effect with one parameter ``{group}_{axis}`` per stick axis, acting through ``|eta|``, injected on
+    the dice's random axis at ``value(rng)``."""
 
     def params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
-        return tuple(Param(at(group, i), f"{group}_{a}", unit, a, start, True, bound) for i, a in enumerate(INPUT_NAMES))
-
-    return params
-
-
-def _on_axis(group: str, value: Callable[[np.random.Generator], float]) -> Callable[[Dice], Draw]:
-    """Sampler of ``{group}_{axis}`` on the dice's random axis at ``value(rng)``."""
+        return tuple(Param(at(group, i), f"{group}_{a}", unit, a, start, True, bound)
+                     for i, a in enumerate(INPUT_NAMES))
 
     def inject(dice: Dice) -> Draw:
-        name = f"{group}_{INPUT_NAMES[dice.axis]}"
-        return Draw({name: value(dice.rng)}, name)
+        param = f"{group}_{INPUT_NAMES[dice.axis]}"
+        return Draw({param: value(dice.rng)}, param)
 
-    return inject
+    return Effect(name, (Group(group, N_INPUTS),), order, params, (term,), inject)
 
 
 def _delay_history(plant: Plant) -> Float[Array, "D 4"]:
@@ -67,14 +64,8 @@ def _delay(plant: Plant, history: Float[Array, "D 4"], sticks: Float[Array, "4"]
     return history, (1.0 - f) * history[i0, axes] + f * history[i0 + 1, axes]
 
 
-INPUT_DELAY = Effect(
-    name="input_delay",
-    groups=(Group("delay", N_INPUTS),),
-    order=0,
-    params=_per_axis("delay", "s", 0.01, 0.5),
-    terms=(Term("command", _delay, init=_delay_history),),
-    inject=_on_axis("delay", lambda rng: rng.uniform(0.04, 0.12)),
-)
+INPUT_DELAY = _per_axis("input_delay", "delay", order=0, unit="s", start=0.01, bound=0.5,
+                        term=Term("command", _delay, init=_delay_history), value=lambda rng: rng.uniform(0.04, 0.12))
 """Transport delay per stick axis (s; servo and transport delays are 20-150 ms, plausible up to 0.5 s).
 Injected: 40-120 ms on one random axis."""
 
@@ -87,14 +78,8 @@ def _lag(plant: Plant, state: None, sticks: Float[Array, "4"], servo: Float[Arra
     return state, a * servo + (1.0 - a) * sticks
 
 
-ACTUATOR_LAG = Effect(
-    name="actuator_lag",
-    groups=(Group("lag", N_INPUTS),),
-    order=1,
-    params=_per_axis("lag", "s", 0.01, 0.5),
-    terms=(Term("servo", _lag),),
-    inject=_on_axis("lag", lambda rng: rng.uniform(0.05, 0.15)),
-)
+ACTUATOR_LAG = _per_axis("actuator_lag", "lag", order=1, unit="s", start=0.01, bound=0.5, term=Term("servo", _lag),
+                         value=lambda rng: rng.uniform(0.05, 0.15))
 """First-order servo lag per stick axis (s; rotor lags ~0.1 s, plausible up to 0.5 s). Injected: 50-150 ms
 on one random axis."""
 
@@ -197,14 +182,8 @@ def _saturate(plant: Plant, state: None, sticks: Float[Array, "4"], servo: Float
     return state, sticks / jnp.sqrt(1.0 + jnp.abs(plant.group("sat")) * sticks**2)
 
 
-CONTROL_SATURATION = Effect(
-    name="control_saturation",
-    groups=(Group("sat", N_INPUTS),),
-    order=2,
-    params=_per_axis("sat", "1/stick^2", 1.0, 100.0),
-    terms=(Term("command", _saturate),),
-    inject=_on_axis("sat", lambda rng: rng.uniform(0.15, 0.3) ** -2),
-)
+CONTROL_SATURATION = _per_axis("control_saturation", "sat", order=2, unit="1/stick^2", start=1.0, bound=100.0,
+                               term=Term("command", _saturate), value=lambda rng: rng.uniform(0.15, 0.3) ** -2)
 """Saturation of the delayed sticks per axis (1/stick^2, plausible up to 100: a limit no tighter than 0.1 of
 full stick). Injected: a limit at 0.15-0.3 stick on one random axis."""
 
