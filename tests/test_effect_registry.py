@@ -34,7 +34,7 @@ def _remove_offset(plant, y, t):
 GYRO_OFFSET = Effect(
     name="gyro_offset",
     groups=(Group("offset", 1),),
-    order=8,
+    eta_order=8,
     params=lambda outputs, at: (Param(at("offset", 0), "offset_r", "rad/s", "r", 0.0, False, 0.1),),
     terms=(Term("reading", _offset, _remove_offset),),
     inject=lambda dice: Draw({"offset_r": dice.sign * dice.rng.uniform(0.01, 0.02)}, "offset_r"),
@@ -115,8 +115,8 @@ def test_a_ninth_effect_is_drawn_by_its_sampler_and_the_others_draw_as_before():
 def test_registry_rejects_clashes():
     with pytest.raises(ValueError, match="group"):
         Registry(EFFECTS.effects + (dataclasses.replace(GYRO_OFFSET, groups=(Group("drag", 1),)),))
-    with pytest.raises(ValueError, match="order"):
-        Registry(EFFECTS.effects + (dataclasses.replace(GYRO_OFFSET, order=3),))
+    with pytest.raises(ValueError, match="eta_order"):
+        Registry(EFFECTS.effects + (dataclasses.replace(GYRO_OFFSET, eta_order=3),))
     with pytest.raises(ValueError, match="stage"):
         Registry((dataclasses.replace(GYRO_OFFSET, terms=(Term("rotor", _offset),)),))
     trespass = dataclasses.replace(GYRO_OFFSET, params=lambda outputs, at: (Param(at("drag", 0), "x", "-", "-", 0, 0),))

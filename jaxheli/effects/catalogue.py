@@ -33,7 +33,7 @@ _PAIRS = (("u", "v"), ("p", "q"), ("phi", "theta"))
 _UNITS = {"u": "m/s", "v": "m/s", "w": "m/s", "p": "rad/s", "q": "rad/s", "r": "rad/s", "phi": "rad", "theta": "rad"}
 
 
-def _per_axis(name: str, group: str, order: int, unit: str, start: float, bound: float, term: Term,
+def _per_axis(name: str, group: str, eta_order: int, unit: str, start: float, bound: float, term: Term,
               value: Callable[[np.random.Generator], float]) -> Effect:
     """An effect with one parameter ``{group}_{axis}`` per stick axis, acting through ``|eta|``, injected on
     the dice's random axis at ``value(rng)``."""
@@ -46,7 +46,7 @@ def _per_axis(name: str, group: str, order: int, unit: str, start: float, bound:
         param = f"{group}_{INPUT_NAMES[dice.axis]}"
         return Draw({param: value(dice.rng)}, param)
 
-    return Effect(name, (Group(group, N_INPUTS),), order, params, (term,), inject)
+    return Effect(name, (Group(group, N_INPUTS),), eta_order, params, (term,), inject)
 
 
 def _delay_history(plant: Plant) -> Float[Array, "D 4"]:
@@ -64,7 +64,7 @@ def _delay(plant: Plant, history: Float[Array, "D 4"], sticks: Float[Array, "4"]
     return history, (1.0 - f) * history[i0, axes] + f * history[i0 + 1, axes]
 
 
-INPUT_DELAY = _per_axis("input_delay", "delay", order=0, unit="s", start=0.01, bound=0.5,
+INPUT_DELAY = _per_axis("input_delay", "delay", eta_order=0, unit="s", start=0.01, bound=0.5,
                         term=Term("command", _delay, init=_delay_history), value=lambda rng: rng.uniform(0.04, 0.12))
 """Transport delay per stick axis (s; servo and transport delays are 20-150 ms, plausible up to 0.5 s).
 Injected: 40-120 ms on one random axis."""
@@ -78,8 +78,8 @@ def _lag(plant: Plant, state: None, sticks: Float[Array, "4"], servo: Float[Arra
     return state, a * servo + (1.0 - a) * sticks
 
 
-ACTUATOR_LAG = _per_axis("actuator_lag", "lag", order=1, unit="s", start=0.01, bound=0.5, term=Term("servo", _lag),
-                         value=lambda rng: rng.uniform(0.05, 0.15))
+ACTUATOR_LAG = _per_axis("actuator_lag", "lag", eta_order=1, unit="s", start=0.01, bound=0.5,
+                         term=Term("servo", _lag), value=lambda rng: rng.uniform(0.05, 0.15))
 """First-order servo lag per stick axis (s; rotor lags ~0.1 s, plausible up to 0.5 s). Injected: 50-150 ms
 on one random axis."""
 
@@ -110,7 +110,7 @@ def _inject_bias_drift(dice: Dice) -> Draw:
 OUTPUT_BIAS_DRIFT = Effect(
     name="output_bias_drift",
     groups=(Group("bias", None), Group("drift", None)),
-    order=7,
+    eta_order=7,
     params=_channel_params,
     terms=(Term("reading", _offset, _remove_offset),),
     inject=_inject_bias_drift,
@@ -134,7 +134,7 @@ def _inject_gusts(dice: Dice) -> Draw:
 PROCESS_NOISE = Effect(
     name="process_noise",
     groups=(Group("gust", 3, (0.0, 1.0, 0.0)),),
-    order=5,
+    eta_order=5,
     params=_process_noise_params,
     terms=(),
     inject=_inject_gusts,
@@ -168,7 +168,7 @@ def _inject_drag(dice: Dice) -> Draw:
 QUADRATIC_DRAG = Effect(
     name="quadratic_drag",
     groups=(Group("drag", 2),),
-    order=3,
+    eta_order=3,
     params=_drag_params,
     terms=(Term("airframe", _drag),),
     inject=_inject_drag,
@@ -182,8 +182,9 @@ def _saturate(plant: Plant, state: None, sticks: Float[Array, "4"], servo: Float
     return state, sticks / jnp.sqrt(1.0 + jnp.abs(plant.group("sat")) * sticks**2)
 
 
-CONTROL_SATURATION = _per_axis("control_saturation", "sat", order=2, unit="1/stick^2", start=1.0, bound=100.0,
-                               term=Term("command", _saturate), value=lambda rng: rng.uniform(0.15, 0.3) ** -2)
+CONTROL_SATURATION = _per_axis("control_saturation", "sat", eta_order=2, unit="1/stick^2", start=1.0,
+                               bound=100.0, term=Term("command", _saturate),
+                               value=lambda rng: rng.uniform(0.15, 0.3) ** -2)
 """Saturation of the delayed sticks per axis (1/stick^2, plausible up to 100: a limit no tighter than 0.1 of
 full stick). Injected: a limit at 0.15-0.3 stick on one random axis."""
 
@@ -214,7 +215,7 @@ def _inject_rotor(dice: Dice) -> Draw:
 ROTOR_SPEED_COUPLING = Effect(
     name="rotor_speed_coupling",
     groups=(Group("rotor", 2, (0.0, 0.5)),),
-    order=4,
+    eta_order=4,
     params=_rotor_params,
     terms=(Term("airframe", _rotor, init=_rotor_speed),),
     inject=_inject_rotor,
@@ -266,7 +267,7 @@ def _inject_misalignment(dice: Dice) -> Draw:
 SENSOR_MISALIGNMENT = Effect(
     name="sensor_misalignment",
     groups=(Group("mis", 1 + len(GYROS)),),
-    order=6,
+    eta_order=6,
     params=_misalignment_params,
     terms=(Term("mounting", _mount, _unmount),),
     inject=_inject_misalignment,

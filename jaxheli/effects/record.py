@@ -109,9 +109,9 @@ class Draw:
 class Effect:
     """One candidate unmodelled effect.
 
-    ``name``: stable name. ``groups``: its runs of ``eta`` slots. ``order``: where they sit in ``eta``
-    (effects' groups are laid out in increasing ``order``; a new effect takes a number above all others, so
-    no existing slot moves). ``params(outputs, at)``: its parameters for a flight with output channels
+    ``name``: stable name. ``groups``: its runs of ``eta`` slots. ``eta_order``: where they sit in ``eta``
+    (effects' groups are laid out in increasing ``eta_order``; a new effect takes a number above all others,
+    so no existing slot moves). ``params(outputs, at)``: its parameters for a flight with output channels
     ``outputs``, ``at(group, i)`` giving the slot of the ``i``-th entry of one of its groups. ``terms``: the
     physics it adds to the plant (none for an effect that only another component reads). ``inject(dice)``:
     a :class:`Draw` at a random realistic magnitude.
@@ -119,7 +119,7 @@ class Effect:
 
     name: str
     groups: tuple[Group, ...]
-    order: int
+    eta_order: int
     params: Callable[[tuple[str, ...], Callable[[str, int], int]], tuple[Param, ...]]
     terms: tuple[Term, ...]
     inject: Callable[[Dice], Draw]
@@ -134,7 +134,7 @@ class Registry:
     def __post_init__(self) -> None:
         for what, names in (("effect", [e.name for e in self.effects]),
                             ("group", [g.name for e in self.effects for g in e.groups]),
-                            ("order", [e.order for e in self.effects])):
+                            ("eta_order", [e.eta_order for e in self.effects])):
             twice = sorted({n for n in names if names.count(n) > 1})
             if twice:
                 raise ValueError(f"Registry: {what} {twice} given twice")
@@ -157,7 +157,7 @@ class Registry:
     def layout(self, outputs: tuple[str, ...]) -> dict[str, slice]:
         """Slices of ``eta`` per group for a flight with output channels ``outputs``."""
         out, start = {}, 0
-        for effect in sorted(self.effects, key=lambda e: e.order):
+        for effect in sorted(self.effects, key=lambda e: e.eta_order):
             for group in effect.groups:
                 out[group.name] = slice(start, start + group.length(outputs))
                 start += group.length(outputs)
