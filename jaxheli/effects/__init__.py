@@ -1,2 +1,4 @@
-"""Unmodelled effects: the registry of candidate effects (parameters, units, physical ranges) and the
-effect-augmented plant that both flies synthetic truths and predicts in the gap diagnosis."""
+"""Unmodelled effects: one record per candidate effect (:mod:`~jaxheli.effects.record`, the library's eight in
+:mod:`~jaxheli.effects.catalogue`), the names, units and ranges the diagnosis reports
+(:mod:`~jaxheli.effects.registry`), and the effect-augmented plant that both flies synthetic truths and
+predicts in the gap diagnosis (:mod:`~jaxheli.effects.plant`)."""

@@ -1,94 +1,27 @@
 """The library of candidate unmodelled effects: which entries of ``eta`` each one frees, named, with units.
 
 An effect is a set of parameters of the augmented plant (:mod:`jaxheli.effects.plant`), each with a
-physical unit, where it acts (an input axis, an output channel, a coupling), a start value for the fit
-(away from kinks such as ``|delay| = 0``, where the gradient vanishes) and the largest magnitude that is
-physically plausible on a small helicopter (:func:`implausible`). Stable names are in :data:`ALL`.
-
-The plausible ranges, generous on purpose (several times what the blind check injects):
-
-- input delay and servo lag up to 0.5 s (servo and transport delays are 20-150 ms, rotor lags ~0.1 s);
-- saturation up to 100 per stick^2, i.e. a limit no tighter than 0.1 of full stick;
-- quadratic drag up to 10 1/m; rotor-speed yaw gain up to 50 rad/s^2 per stick, its time constant 3 s;
-- gust intensity up to 5 m/s, gust correlation time up to 10 s; with them the restart filter's white
-  state noise is cut by a fitted factor ``exp(-|state_noise_cut|)``, without limit (the filter-error method
-  estimates the whole process-noise model: once the gusts explain the wind, the filter need not follow the
-  sensors as closely as at the base model's tuned level, and the truth of a gusty flight has no white state
-  noise at all);
-- yaw mounting misalignment up to 0.35 rad (20 deg), gyro scale errors up to 50 %;
-- biases and drifts: no limit (they are in the channel's own units).
-
-A fit that leaves its range has absorbed something other than the effect (a mismatch the base model
-carries elsewhere), so it is reported but never the verdict.
+physical unit, where it acts (an input axis, an output channel, a coupling), a start value for the fit and
+the largest magnitude that is physically plausible on a small helicopter (:func:`implausible`); each is
+recorded once, with its plant term and blind-check sampler, in :mod:`jaxheli.effects.catalogue`. Stable
+names are in :data:`ALL`.
 """
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
-from ..model import INPUT_NAMES
-from .plant import GYROS, layout, no_effect
+from .catalogue import EFFECTS
+from .plant import no_effect
+from .record import Param as Param
 
-ALL: tuple[str, ...] = (
-    "input_delay", "actuator_lag", "output_bias_drift", "process_noise", "quadratic_drag",
-    "control_saturation", "rotor_speed_coupling", "sensor_misalignment",
-)
+ALL: tuple[str, ...] = EFFECTS.names
 """Stable names of the candidate effects."""
-
-_UNITS = {"u": "m/s", "v": "m/s", "w": "m/s", "p": "rad/s", "q": "rad/s", "r": "rad/s", "phi": "rad", "theta": "rad"}
-
-
-@dataclasses.dataclass(frozen=True)
-class Param:
-    """One effect parameter: ``eta[slot]``; ``positive`` ones act through ``|eta|`` and are reported so;
-    ``bound`` is the largest physically plausible magnitude (units of ``unit``); a ``shape`` parameter (a
-    time constant) only shapes an effect whose size the others set, so it is never evidence of it."""
-
-    slot: int
-    name: str
-    unit: str
-    where: str
-    start: float
-    positive: bool
-    bound: float = float("inf")
-    shape: bool = False
 
 
 def params(effect: str, outputs: tuple[str, ...]) -> tuple[Param, ...]:
     """The parameters ``effect`` frees for a flight with output channels ``outputs``."""
-    if effect not in ALL:
-        raise ValueError(f"unknown effect {effect!r}; candidates are {ALL}")
-    lay = layout(tuple(outputs))
-
-    def at(group: str, i: int) -> int:
-        return lay[group].start + i
-
-    if effect == "input_delay":
-        return tuple(Param(at("delay", i), f"delay_{a}", "s", a, 0.01, True, 0.5) for i, a in enumerate(INPUT_NAMES))
-    if effect == "actuator_lag":
-        return tuple(Param(at("lag", i), f"lag_{a}", "s", a, 0.01, True, 0.5) for i, a in enumerate(INPUT_NAMES))
-    if effect == "control_saturation":
-        return tuple(Param(at("sat", i), f"sat_{a}", "1/stick^2", a, 1.0, True, 100.0) for i, a in enumerate(INPUT_NAMES))
-    if effect == "quadratic_drag":
-        return (Param(at("drag", 0), "Xuu", "1/m", "u", 0.0, False, 10.0),
-                Param(at("drag", 1), "Yvv", "1/m", "v", 0.0, False, 10.0))
-    if effect == "rotor_speed_coupling":
-        return (Param(at("rotor", 0), "rotor_gain", "rad/s^2 per stick", "col->r", 0.1, False, 50.0),
-                Param(at("rotor", 1), "rotor_tau", "s", "col->r", 0.5, True, 3.0, shape=True))
-    if effect == "process_noise":
-        return (Param(at("gust", 0), "gust_std", "m/s", "u,v,w", 0.3, True, 5.0),
-                Param(at("gust", 1), "gust_tau", "s", "u,v,w", 1.0, True, 10.0, shape=True),
-                Param(at("gust", 2), "state_noise_cut", "ln", "u,v,w", 1.0, True, shape=True))
-    if effect == "sensor_misalignment":
-        return (Param(at("mis", 0), "yaw_misalignment", "rad", "u-v,p-q,phi-theta", 0.0, False, 0.35),
-                *(Param(at("mis", 1 + i), f"scale_{c}", "fraction", c, 0.0, False, 0.5) for i, c in enumerate(GYROS)
-                  if c in outputs))
-    bias = tuple(Param(at("bias", i), f"bias_{c}", _UNITS.get(c, "-"), c, 0.0, False) for i, c in enumerate(outputs))
-    drift = tuple(Param(at("drift", i), f"drift_{c}", f"{_UNITS.get(c, '-')}/s", c, 0.0, False)
-                  for i, c in enumerate(outputs))
-    return bias + drift
+    return EFFECTS.params(effect, outputs)
 
 
 def candidate_arrays(

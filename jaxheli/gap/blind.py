@@ -28,10 +28,11 @@ from tqdm.auto import tqdm
 from .._types import Array, Float, Int
 from ..synth.excitation import Excitation
 from ..data.flight import FlightData
-from ..model import INPUT_NAMES, TABLE2
+from ..model import TABLE2
 from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
 from ..effects import registry as fx
-from ..effects.plant import GYROS, layout, no_effect
+from ..effects.catalogue import EFFECTS
+from ..effects.plant import no_effect
 from .fit_effect import Fit, embed, fit_candidates, score
 from .predictor import Predictor, make_predictor, tune_track
 from .ranking import shrink_entries
@@ -57,50 +58,15 @@ class Injection:
 
 def sample_injection(kind: str, seed: int, outputs: tuple[str, ...] = DEFAULT_OUTPUTS,
                      duration: float = 30.0) -> Injection:
-    """Draw ``kind`` at a random realistic magnitude (``numpy`` generator seeded by ``seed``).
-
-    Delays 40-120 ms and servo lags 50-150 ms on one random axis; bias 2-4 noise standard deviations and a
-    drift of as much again over ``duration`` s on one channel; gusts 0.3-0.8 m/s with 0.5-2 s correlation;
-    quadratic drag 1-3 1/m on u and v; saturation at 0.15-0.3 stick on one axis; rotor-speed yaw coupling
-    2-5 rad/s^2 per collective stick with a 0.3-1 s time constant; a 2-5 deg yaw mounting misalignment with
-    a 3-8 % scale error on one gyro.
-    """
+    """Draw ``kind`` at a random realistic magnitude by its registry entry's sampler (``numpy`` generator
+    seeded by ``seed``; ranges in :mod:`jaxheli.effects.catalogue`) for a flight of ``duration`` s with the
+    synthetic flights' measurement noise (:data:`~jaxheli.synth.piloted.DEFAULT_NOISE`)."""
     if kind not in KINDS:
         raise ValueError(f"sample_injection: unknown kind {kind!r}; kinds are {KINDS}")
-    rng = np.random.default_rng(seed)
-    eta, lay = no_effect(outputs), layout(outputs)
-    sign = rng.choice([-1.0, 1.0])
-    axis = int(rng.integers(len(INPUT_NAMES)))
-    gust, gust_tau, primary = 0.0, 1.0, None
-    if kind == "input_delay":
-        primary, slot, value = f"delay_{INPUT_NAMES[axis]}", lay["delay"].start + axis, rng.uniform(0.04, 0.12)
-    elif kind == "actuator_lag":
-        primary, slot, value = f"lag_{INPUT_NAMES[axis]}", lay["lag"].start + axis, rng.uniform(0.05, 0.15)
-    elif kind == "control_saturation":
-        primary, slot, value = f"sat_{INPUT_NAMES[axis]}", lay["sat"].start + axis, rng.uniform(0.15, 0.3) ** -2
-    elif kind == "output_bias_drift":
-        c = int(rng.integers(len(outputs)))
-        std = DEFAULT_NOISE[outputs[c]]
-        eta[lay["drift"].start + c] = rng.choice([-1.0, 1.0]) * rng.uniform(2, 4) * std / duration
-        primary, slot, value = f"bias_{outputs[c]}", lay["bias"].start + c, sign * rng.uniform(2, 4) * std
-    elif kind == "process_noise":
-        gust, gust_tau = rng.uniform(0.3, 0.8), rng.uniform(0.5, 2.0)
-        eta[lay["gust"].start + 1] = gust_tau
-        primary, slot, value = "gust_std", lay["gust"].start, gust
-    elif kind == "quadratic_drag":
-        eta[lay["drag"].start + 1] = -rng.uniform(1.0, 3.0)
-        primary, slot, value = "Xuu", lay["drag"].start, -rng.uniform(1.0, 3.0)
-    elif kind == "rotor_speed_coupling":
-        eta[lay["rotor"].start + 1] = rng.uniform(0.3, 1.0)
-        primary, slot, value = "rotor_gain", lay["rotor"].start, sign * rng.uniform(2.0, 5.0)
-    elif kind == "sensor_misalignment":
-        gyros = [i for i, c in enumerate(GYROS) if c in outputs]
-        eta[lay["mis"].start + 1 + gyros[int(rng.integers(len(gyros)))]] = rng.choice([-1, 1]) * rng.uniform(0.03, 0.08)
-        primary, slot, value = "yaw_misalignment", lay["mis"].start, sign * np.deg2rad(rng.uniform(2.0, 5.0))
-    if primary is None:
-        return Injection(kind, eta, 0.0, 1.0, None, 0.0)
-    eta[slot] = value
-    return Injection(kind, eta, float(gust), float(gust_tau), primary, float(value))
+    if kind == "none":
+        return Injection(kind, no_effect(outputs), 0.0, 1.0, None, 0.0)
+    eta, draw = EFFECTS.inject(kind, seed, outputs, DEFAULT_NOISE, duration)
+    return Injection(kind, eta, float(draw.gust), float(draw.gust_tau), draw.primary, float(draw.values[draw.primary]))
 
 
 def blind_flights(injection: Injection, seed: int, *, duration: float = 30.0, dt: float = 0.05,

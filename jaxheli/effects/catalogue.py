@@ -1,0 +1,280 @@
+"""The library's candidate unmodelled effects, one :class:`~jaxheli.effects.record.Effect` each, and their
+registry :data:`EFFECTS`.
+
+Each effect's parameters carry the largest magnitude that is physically plausible on a small helicopter
+(:func:`jaxheli.effects.registry.implausible`), generous on purpose (several times what the blind check
+injects); a fit that leaves its range has absorbed something other than the effect (a mismatch the base
+model carries elsewhere), so it is reported but never the verdict. Start values keep the fit away from kinks
+such as ``|delay| = 0``, where the gradient vanishes. Every plant term is the identity at its no-effect value,
+so effects that are absent cost nothing in accuracy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import jax.numpy as jnp
+import numpy as np
+
+from .._types import Array, Float
+from ..model import INPUT_NAMES, N_INPUTS, STATE_NAMES
+from .record import Dice, Draw, Effect, Group, Param, Registry, Term
+
+if TYPE_CHECKING:
+    from .plant import Plant
+
+GYROS: tuple[str, ...] = ("p", "q", "r")
+"""Output channels a scale-factor error acts on (gyros)."""
+
+_PAIRS = (("u", "v"), ("p", "q"), ("phi", "theta"))
+"""Output pairs a yaw mounting misalignment rotates."""
+
+_UNITS = {"u": "m/s", "v": "m/s", "w": "m/s", "p": "rad/s", "q": "rad/s", "r": "rad/s", "phi": "rad", "theta": "rad"}
+
+
+def _per_axis(name: str, group: str, eta_order: int, unit: str, start: float, bound: float, term: Term,
+              value: Callable[[np.random.Generator], float]) -> Effect:
+    """An effect with one parameter ``{group}_{axis}`` per stick axis, acting through ``|eta|``, injected on
+    the dice's random axis at ``value(rng)``."""
+
+    def params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
+        return tuple(Param(at(group, i), f"{group}_{a}", unit, a, start, True, bound)
+                     for i, a in enumerate(INPUT_NAMES))
+
+    def inject(dice: Dice) -> Draw:
+        param = f"{group}_{INPUT_NAMES[dice.axis]}"
+        return Draw({param: value(dice.rng)}, param)
+
+    return Effect(name, (Group(group, N_INPUTS),), eta_order, params, (term,), inject)
+
+
+def _delay_history(plant: Plant) -> Float[Array, "D 4"]:
+    return jnp.zeros((plant.max_delay + 2, N_INPUTS))
+
+
+def _delay(plant: Plant, history: Float[Array, "D 4"], sticks: Float[Array, "4"], servo: Float[Array, "4"]
+           ) -> tuple[Float[Array, "D 4"], Float[Array, "4"]]:
+    """Transport delay of ``|delay|`` s: linear interpolation of the held sticks (``history``, newest first)."""
+    history = jnp.concatenate([sticks[None, :], history[:-1]], axis=0)
+    d = jnp.clip(jnp.abs(plant.group("delay")) / plant.dt, 0.0, float(plant.max_delay))
+    i0 = jnp.clip(jnp.floor(d), 0, plant.max_delay).astype(jnp.int32)
+    f = d - i0
+    axes = jnp.arange(N_INPUTS)
+    return history, (1.0 - f) * history[i0, axes] + f * history[i0 + 1, axes]
+
+
+INPUT_DELAY = _per_axis("input_delay", "delay", eta_order=0, unit="s", start=0.01, bound=0.5,
+                        term=Term("command", _delay, init=_delay_history), value=lambda rng: rng.uniform(0.04, 0.12))
+"""Transport delay per stick axis (s; servo and transport delays are 20-150 ms, plausible up to 0.5 s).
+Injected: 40-120 ms on one random axis."""
+
+
+def _lag(plant: Plant, state: None, sticks: Float[Array, "4"], servo: Float[Array, "4"]
+         ) -> tuple[None, Float[Array, "4"]]:
+    """Servo lag of time constant ``|lag|`` s, backward Euler from the servo position ``servo``."""
+    tau = jnp.abs(plant.group("lag"))
+    a = tau / (tau + plant.dt)
+    return state, a * servo + (1.0 - a) * sticks
+
+
+ACTUATOR_LAG = _per_axis("actuator_lag", "lag", eta_order=1, unit="s", start=0.01, bound=0.5,
+                         term=Term("servo", _lag), value=lambda rng: rng.uniform(0.05, 0.15))
+"""First-order servo lag per stick axis (s; rotor lags ~0.1 s, plausible up to 0.5 s). Injected: 50-150 ms
+on one random axis."""
+
+
+def _channel_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
+    bias = tuple(Param(at("bias", i), f"bias_{c}", _UNITS.get(c, "-"), c, 0.0, False) for i, c in enumerate(outputs))
+    drift = tuple(Param(at("drift", i), f"drift_{c}", f"{_UNITS.get(c, '-')}/s", c, 0.0, False)
+                  for i, c in enumerate(outputs))
+    return bias + drift
+
+
+def _offset(plant: Plant, y: Float[Array, "k"], t: Float[Array, ""]) -> Float[Array, "k"]:
+    return y + plant.group("bias") + plant.group("drift") * t
+
+
+def _remove_offset(plant: Plant, y: Float[Array, "N k"], t: Float[Array, "N"]) -> Float[Array, "N k"]:
+    return y - plant.group("bias")[None, :] - t[:, None] * plant.group("drift")[None, :]
+
+
+def _inject_bias_drift(dice: Dice) -> Draw:
+    channel = dice.outputs[int(dice.rng.integers(len(dice.outputs)))]
+    std = dice.noise[channel]
+    drift = dice.rng.choice([-1.0, 1.0]) * dice.rng.uniform(2, 4) * std / dice.duration
+    bias = dice.sign * dice.rng.uniform(2, 4) * std
+    return Draw({f"drift_{channel}": drift, f"bias_{channel}": bias}, f"bias_{channel}")
+
+
+OUTPUT_BIAS_DRIFT = Effect(
+    name="output_bias_drift",
+    groups=(Group("bias", None), Group("drift", None)),
+    eta_order=7,
+    params=_channel_params,
+    terms=(Term("reading", _offset, _remove_offset),),
+    inject=_inject_bias_drift,
+)
+"""A constant bias and a linear drift on every output channel (the channel's units and per s; no limit):
+``y + bias + drift t``. Injected: bias 2-4 noise standard deviations and a drift of as much again over the
+flight, on one random channel."""
+
+
+def _process_noise_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
+    return (Param(at("gust", 0), "gust_std", "m/s", "u,v,w", 0.3, True, 5.0),
+            Param(at("gust", 1), "gust_tau", "s", "u,v,w", 1.0, True, 10.0, shape=True),
+            Param(at("gust", 2), "state_noise_cut", "ln", "u,v,w", 1.0, True, shape=True))
+
+
+def _inject_gusts(dice: Dice) -> Draw:
+    gust, gust_tau = dice.rng.uniform(0.3, 0.8), dice.rng.uniform(0.5, 2.0)
+    return Draw({"gust_tau": gust_tau, "gust_std": gust}, "gust_std", gust, gust_tau)
+
+
+PROCESS_NOISE = Effect(
+    name="process_noise",
+    groups=(Group("gust", 3, (0.0, 1.0, 0.0)),),
+    eta_order=5,
+    params=_process_noise_params,
+    terms=(),
+    inject=_inject_gusts,
+)
+"""First-order Gauss-Markov wind on u, v, w: std (m/s, plausible up to 5), correlation time (s, up to 10;
+1 s at no effect) and a cut ``c`` of the restart filter's white state noise (``track`` to ``track e^-|c|``,
+without limit: the filter-error method estimates the whole process-noise model; once the gusts explain the
+wind, the filter need not follow the sensors as closely as at the base model's tuned level). No plant term:
+the wind enters every plant through ``E``; :func:`jaxheli.gap.kalman.gust_filter` reads this group.
+Injected: a flight in gusts of 0.3-0.8 m/s with 0.5-2 s correlation."""
+
+
+def _drag_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
+    return (Param(at("drag", 0), "Xuu", "1/m", "u", 0.0, False, 10.0),
+            Param(at("drag", 1), "Yvv", "1/m", "v", 0.0, False, 10.0))
+
+
+def _drag(plant: Plant, state: None, x: Float[Array, "13"], applied: Float[Array, "4"]
+          ) -> tuple[None, Float[Array, "13"]]:
+    """``Xuu u|u|`` and ``Yvv v|v|`` on the speed derivatives."""
+    xuu, yvv = plant.group("drag")
+    iu, iv = STATE_NAMES.index("u"), STATE_NAMES.index("v")
+    return state, jnp.zeros_like(x).at[iu].set(xuu * x[iu] * jnp.abs(x[iu])).at[iv].set(yvv * x[iv] * jnp.abs(x[iv]))
+
+
+def _inject_drag(dice: Dice) -> Draw:
+    yvv = -dice.rng.uniform(1.0, 3.0)
+    return Draw({"Yvv": yvv, "Xuu": -dice.rng.uniform(1.0, 3.0)}, "Xuu")
+
+
+QUADRATIC_DRAG = Effect(
+    name="quadratic_drag",
+    groups=(Group("drag", 2),),
+    eta_order=3,
+    params=_drag_params,
+    terms=(Term("airframe", _drag),),
+    inject=_inject_drag,
+)
+"""Quadratic drag on u and v (1/m, plausible up to 10). Injected: 1-3 1/m on both."""
+
+
+def _saturate(plant: Plant, state: None, sticks: Float[Array, "4"], servo: Float[Array, "4"]
+              ) -> tuple[None, Float[Array, "4"]]:
+    """``u / sqrt(1 + k u^2)``: a smooth limit at ``1 / sqrt(k)`` stick, ``k = |sat|``."""
+    return state, sticks / jnp.sqrt(1.0 + jnp.abs(plant.group("sat")) * sticks**2)
+
+
+CONTROL_SATURATION = _per_axis("control_saturation", "sat", eta_order=2, unit="1/stick^2", start=1.0,
+                               bound=100.0, term=Term("command", _saturate),
+                               value=lambda rng: rng.uniform(0.15, 0.3) ** -2)
+"""Saturation of the delayed sticks per axis (1/stick^2, plausible up to 100: a limit no tighter than 0.1 of
+full stick). Injected: a limit at 0.15-0.3 stick on one random axis."""
+
+
+def _rotor_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
+    return (Param(at("rotor", 0), "rotor_gain", "rad/s^2 per stick", "col->r", 0.1, False, 50.0),
+            Param(at("rotor", 1), "rotor_tau", "s", "col->r", 0.5, True, 3.0, shape=True))
+
+
+def _rotor_speed(plant: Plant) -> Float[Array, ""]:
+    return jnp.zeros(())
+
+
+def _rotor(plant: Plant, rotor: Float[Array, ""], x: Float[Array, "13"], applied: Float[Array, "4"]
+           ) -> tuple[Float[Array, ""], Float[Array, "13"]]:
+    """Rotor-speed state, a backward-Euler lag of the collective, driving the yaw acceleration."""
+    gain, tau = plant.group("rotor")
+    tau = jnp.abs(tau) + 1e-6
+    rotor = (tau * rotor + plant.dt * gain * applied[INPUT_NAMES.index("col")]) / (tau + plant.dt)
+    return rotor, jnp.zeros_like(x).at[STATE_NAMES.index("r")].set(rotor)
+
+
+def _inject_rotor(dice: Dice) -> Draw:
+    tau = dice.rng.uniform(0.3, 1.0)
+    return Draw({"rotor_tau": tau, "rotor_gain": dice.sign * dice.rng.uniform(2.0, 5.0)}, "rotor_gain")
+
+
+ROTOR_SPEED_COUPLING = Effect(
+    name="rotor_speed_coupling",
+    groups=(Group("rotor", 2, (0.0, 0.5)),),
+    eta_order=4,
+    params=_rotor_params,
+    terms=(Term("airframe", _rotor, init=_rotor_speed),),
+    inject=_inject_rotor,
+)
+"""Collective to yaw through the rotor speed: gain (rad/s^2 per stick, plausible up to 50) and time
+constant (s, up to 3; 0.5 s at no effect). Injected: 2-5 rad/s^2 per stick with a 0.3-1 s time constant."""
+
+
+def _misalignment_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
+    return (Param(at("mis", 0), "yaw_misalignment", "rad", "u-v,p-q,phi-theta", 0.0, False, 0.35),
+            *(Param(at("mis", 1 + i), f"scale_{c}", "fraction", c, 0.0, False, 0.5) for i, c in enumerate(GYROS)
+              if c in outputs))
+
+
+def _sensor_matrix(plant: Plant) -> Float[Array, "k k"]:
+    """``M``: scale factors on p, q, r, then a yaw rotation of the (u, v), (p, q), (phi, theta) pairs."""
+    eps, *scale = plant.group("mis")
+    outputs = plant.outputs
+    k = len(outputs)
+    diag = jnp.ones(k)
+    for name, s in zip(GYROS, scale):
+        if name in outputs:
+            diag = diag.at[outputs.index(name)].add(s)
+    R = jnp.eye(k)
+    c, s = jnp.cos(eps), jnp.sin(eps)
+    for a, b in _PAIRS:
+        if a in outputs and b in outputs:
+            i, j = outputs.index(a), outputs.index(b)
+            R = R.at[i, i].set(c).at[i, j].set(s).at[j, i].set(-s).at[j, j].set(c)
+    return R * diag[None, :]
+
+
+def _mount(plant: Plant, y: Float[Array, "k"], t: Float[Array, ""]) -> Float[Array, "k"]:
+    return _sensor_matrix(plant) @ y
+
+
+def _unmount(plant: Plant, y: Float[Array, "N k"], t: Float[Array, "N"]) -> Float[Array, "N k"]:
+    return jnp.linalg.solve(_sensor_matrix(plant), y.T).T
+
+
+def _inject_misalignment(dice: Dice) -> Draw:
+    scale = dice.rng.choice([-1, 1]) * dice.rng.uniform(0.03, 0.08)
+    gyros = [c for c in GYROS if c in dice.outputs]
+    gyro = gyros[int(dice.rng.integers(len(gyros)))]
+    yaw = dice.sign * np.deg2rad(dice.rng.uniform(2.0, 5.0))
+    return Draw({f"scale_{gyro}": scale, "yaw_misalignment": yaw}, "yaw_misalignment")
+
+
+SENSOR_MISALIGNMENT = Effect(
+    name="sensor_misalignment",
+    groups=(Group("mis", 1 + len(GYROS)),),
+    eta_order=6,
+    params=_misalignment_params,
+    terms=(Term("mounting", _mount, _unmount),),
+    inject=_inject_misalignment,
+)
+"""A yaw mounting misalignment (rad, plausible up to 0.35 = 20 deg) and scale-factor errors of the gyros
+present (fractions, up to 0.5). Injected: 2-5 deg with a 3-8 % scale error on one random gyro."""
+
+EFFECTS = Registry((INPUT_DELAY, ACTUATOR_LAG, OUTPUT_BIAS_DRIFT, PROCESS_NOISE, QUADRATIC_DRAG, CONTROL_SATURATION,
+                    ROTOR_SPEED_COUPLING, SENSOR_MISALIGNMENT))
+"""The library's effects, in their stable order."""
