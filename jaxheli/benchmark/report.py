@@ -46,12 +46,9 @@ def markdown(result: dict) -> str:
 
 def plot_throughput(result: dict, path: str | Path) -> Path:
     """Evaluations per second against population size, one line per method, dtype and flight length."""
-    import matplotlib
+    from ..plots import _subplots
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = _subplots(figsize=(7, 4.5))
     rows = result["rates"]
     for dtype in sorted({r["dtype"] for r in rows}):
         for n in sorted({r["N"] for r in rows}):
@@ -68,5 +65,4 @@ def plot_throughput(result: dict, path: str | Path) -> Path:
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
     return Path(path)

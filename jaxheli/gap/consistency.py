@@ -412,12 +412,12 @@ def _applied_scale(s: float, sigma: float) -> float:
 def plot_kinematics(flight: FlightData, corrected: FlightData, path: str | Path) -> Path:
     """PNG of the kinematic comparison per axis: d(angle)/dt against the rate-implied ``c rate + e``, before
     and after :func:`correct` (signals low-passed as in the check)."""
-    from ..plots import _save, plt
+    from ..plots import _save, _subplots
 
     columns = (("recorded", flight), ("corrected", corrected))
     terms = [_kinematic_terms(f)[1] for _, f in columns]
     keys = list(terms[0]) or [("none", "-", "-")]
-    fig, axes = plt.subplots(len(keys), 2, figsize=(13, 2.4 * len(keys) + 0.6), sharex="col", squeeze=False)
+    fig, axes = _subplots(len(keys), 2, figsize=(13, 2.4 * len(keys) + 0.6), sharex="col", squeeze=False)
     for row, key in enumerate(keys):
         for (label, f), term, ax in zip(columns, terms, axes[row]):
             if key in term:

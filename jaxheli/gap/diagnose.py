@@ -222,19 +222,14 @@ def plot_before_after(
     flight: FlightData, predicted: Float[np.ndarray, "C N k"], labels: Sequence[str], path: str | Path,
 ) -> Path:
     """Time histories per channel: the flight's measurement and each prediction ``predicted[c]`` (``labels[c]``)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ..plots import _save
+    from ..plots import _save, _subplots
 
     predicted = np.asarray(predicted)
     if predicted.shape[1:] != flight.outputs.shape or predicted.shape[0] != len(labels):
         raise ValueError(f"plot_before_after: predictions {predicted.shape} must be [{len(labels)}, "
                          f"{', '.join(map(str, flight.outputs.shape))}] for {flight.source}")
     k = len(flight.output_names)
-    fig, axes = plt.subplots(k, 1, figsize=(10, 1.6 * k + 0.8), sharex=True, squeeze=False)
+    fig, axes = _subplots(k, 1, figsize=(10, 1.6 * k + 0.8), sharex=True, squeeze=False)
     t = flight.time - flight.time[0]
     units = flight.units
     for c, (ax, name) in enumerate(zip(axes[:, 0], flight.output_names)):
