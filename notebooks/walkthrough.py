@@ -46,7 +46,8 @@ from IPython.display import Image, display
 import jaxheli
 from jaxheli.io.paths import data_file
 from jaxheli.synth.excitation import Excitation
-from jaxheli.gap import augmented, check, correct
+from jaxheli.effects import plant as augmented
+from jaxheli.gap import check, correct
 from jaxheli.gap.consistency import plot_kinematics
 from jaxheli.gap.diagnose import diagnose, ranking_table, write_diagnosis
 from jaxheli.report import SECTION_IDS

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from jaxheli.gap import augmented
+from jaxheli.effects import plant as augmented
 from jaxheli.gap.blind import KINDS, blind_flights, markdown, run_blind, sample_injection, summarise
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS
 

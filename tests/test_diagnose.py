@@ -10,7 +10,7 @@ import pytest
 
 from jaxheli.cost import nmse
 from jaxheli.synth.excitation import Excitation
-from jaxheli.gap import augmented, effects
+from jaxheli.effects import plant as augmented, registry as effects
 from jaxheli.gap.diagnose import add_parser, diagnose, effect_eta, predictions, shared_outputs
 from jaxheli.gap.predictor import make_predictor
 from jaxheli.io import save_npz
