@@ -1,7 +1,8 @@
-"""The benchmark's markdown tables and its throughput plot."""
+"""The benchmark's markdown tables, its throughput plot and its files."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -66,3 +67,13 @@ def plot_throughput(result: dict, path: str | Path) -> Path:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     return Path(path)
+
+
+def write_bench(result: dict, out: str | Path) -> list[Path]:
+    """Write ``bench.json`` (``result``), ``bench.md`` (:func:`markdown`) and ``throughput.png``
+    (:func:`plot_throughput`) into ``out``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "bench.json").write_text(json.dumps(result, indent=2))
+    (out / "bench.md").write_text(markdown(result))
+    return [out / "bench.json", out / "bench.md", plot_throughput(result, out / "throughput.png")]
