@@ -15,18 +15,18 @@ import sys
 
 import jax
 
-from jaxheli.gap.blind import add_parser, run_cli
+from jaxheli.cli.gap import add_blind_parser
 
 
 def main(argv: list[str] | None = None) -> int:
     jax.config.update("jax_enable_x64", True)
     parser = argparse.ArgumentParser(prog="blind_diagnosis", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command")
-    add_parser(sub)
+    add_blind_parser(sub)
     args = parser.parse_args(["blind", *(sys.argv[1:] if argv is None else argv)])
     if args.out == "jaxheli-blind":
         args.out = "results/blind"
-    return run_cli(args)
+    return args.func(args)
 
 
 if __name__ == "__main__":

@@ -8,10 +8,10 @@ The same as ``jaxheli trials-scaling`` once wired into the command line (:func:`
 import argparse
 import sys
 
-from jaxheli.distributed import add_parser
+from jaxheli.cli.bench import add_trials_scaling_parser
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(prog="distributed_trials.py")
-    add_parser(parser.add_subparsers(dest="command"))
+    add_trials_scaling_parser(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["trials-scaling", *sys.argv[1:]])
     sys.exit(args.func(args))

@@ -20,7 +20,6 @@ On CPU the gather goes through gloo collectives over TCP (``jax_cpu_collectives_
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import socket
@@ -241,8 +240,8 @@ def trials_scaling(
     per process count (``cold_s``, ``warm_s``, ``speedup`` = one process's warm seconds over this one's)
     and the largest difference of the best costs from the one-process run.
     """
-    argv = [sys.executable, "-c", "from jaxheli.distributed import _scaling_worker; _scaling_worker()",
-            "--trials", str(trials), "--iterations", str(iterations), "--samples", str(samples), "--dtype", dtype]
+    argv = [sys.executable, "-c", "from jaxheli.distributed import _scaling_worker; "
+            f"_scaling_worker({trials:d}, {iterations:d}, {samples:d}, {dtype!r})"]
     rows = []
     for n in processes:
         stdout = launch_local(argv, n, timeout=timeout)[0]
@@ -256,25 +255,20 @@ def trials_scaling(
             "cores": os.cpu_count(), "rows": rows}
 
 
-def _scaling_worker() -> None:
+def _scaling_worker(trials: int, iterations: int, samples: int, dtype: str) -> None:
     """One process of :func:`trials_scaling`: join the group, run the trials twice, print timings on process 0."""
-    parser = argparse.ArgumentParser(description="one process of jaxheli.distributed.trials_scaling")
-    for name in ("trials", "iterations", "samples"):
-        parser.add_argument(f"--{name}", type=int, required=True)
-    parser.add_argument("--dtype", required=True)
-    args = parser.parse_args()
     initialize()
     jax.config.update("jax_enable_x64", True)
-    flight = bench_flight(args.samples)
+    flight = bench_flight(samples)
     sim = make_simulator(flight)
-    target = jnp.asarray(flight.outputs, args.dtype)
-    cost = PopulationCost(sim, target, args.dtype)
-    opt = IWO(LOWER, UPPER, iterations=args.iterations)
-    keys = jax.random.split(jax.random.key(0), args.trials)
+    target = jnp.asarray(flight.outputs, dtype)
+    cost = PopulationCost(sim, target, dtype)
+    opt = IWO(LOWER, UPPER, iterations=iterations)
+    keys = jax.random.split(jax.random.key(0), trials)
     seconds = []
     for _ in range(2):
         t0 = time.perf_counter()
-        result = minimize_trials_distributed(opt, cost, keys, chunk=args.iterations, progress=False)
+        result = minimize_trials_distributed(opt, cost, keys, chunk=iterations, progress=False)
         best = np.asarray(jax.block_until_ready(result.best_cost))
         seconds.append(time.perf_counter() - t0)
     if jax.process_index() == 0:
@@ -283,37 +277,4 @@ def _scaling_worker() -> None:
     if jax.distributed.is_initialized():
         jax.distributed.shutdown()
 
-
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register ``trials-scaling`` on the ``jaxheli`` command line."""
-    p = subparsers.add_parser(
-        "trials-scaling",
-        help="time K IWO trials on one process vs several local jax.distributed processes",
-        description="Runs the same K IWO trials (paper cost, synthetic flight) as 1, 2, ... local processes "
-        "joined with jax.distributed (CPU, gloo), each process running its share of the trials, and reports "
-        "the seconds and the speed-up over one process.",
-    )
-    p.add_argument("--trials", type=int, default=10, help="IWO trials K")
-    p.add_argument("--iterations", type=int, default=50, help="generations per trial")
-    p.add_argument("--samples", type=int, default=1000, help="flight length N")
-    p.add_argument("--dtype", default="float32", choices=["float32", "float64"])
-    p.add_argument("--processes", type=int, nargs="+", default=[1, 2], help="process counts (the first is the base)")
-    p.add_argument("--timeout", type=float, default=600.0, help="seconds allowed per process group")
-    p.add_argument("--out", default=None, help="also write the result as JSON here")
-    p.set_defaults(func=run)
-    return p
-
-
-def run(args: argparse.Namespace) -> int:
-    """Handler of ``jaxheli trials-scaling``."""
-    result = trials_scaling(trials=args.trials, iterations=args.iterations, samples=args.samples, dtype=args.dtype,
-                            processes=args.processes, timeout=args.timeout)
-    print(f"{result['trials']} trials x {result['iterations']} generations, N={result['samples']}, "
-          f"{result['dtype']}, {result['cores']} cores")
-    for row in result["rows"]:
-        print(f"  {row['processes']} process(es): {row['warm_s']:.2f} s warm ({row['cold_s']:.2f} s with compile), "
-              f"speed-up {row['speedup']:.2f}x, best-cost difference {row['max_cost_difference']:.2g}")
-    if args.out:
-        Path(args.out).write_text(json.dumps(result, indent=2))
-    return 0
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from ._types import Float
 from .cost import metrics
-from .data.flight import FlightData, default_outputs as default_outputs
+from .data.flight import FlightData
 from .model import G_SI, N_PARAMS, PARAM_NAMES, TABLE2, params_array
 from .problem import Problem, as_problem, make_problem
 from .sim.initial_state import estimate_x0

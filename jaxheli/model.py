@@ -168,8 +168,3 @@ def output_matrix(names: tuple[str, ...] | list[str]) -> Float[Array, "channel 1
     """Selection matrix ``C`` mapping the 13 states to the named measured outputs."""
     idx = output_indices(names)
     return jnp.asarray(np.eye(N_STATES)[idx])
-
-
-def clip_to_bounds(theta: Params) -> Float[Array, "*batch 40"]:
-    """Clip parameter vector(s) into the authors' search box."""
-    return jnp.clip(jnp.asarray(theta), jnp.asarray(LOWER), jnp.asarray(UPPER))

@@ -1,17 +1,20 @@
-"""PNG plots of identification results: time-domain verification and convergence curves."""
+"""PNG plots of identification results: time-domain verification and convergence curves.
+
+Figures are drawn on matplotlib's Agg canvas outside pyplot, so plotting works headless and leaves the
+caller's backend and open figures alone.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
-import matplotlib
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .model import STATE_UNITS  # noqa: E402
+from .model import STATE_UNITS
 
 
 def plot_time_domain(
@@ -27,7 +30,7 @@ def plot_time_domain(
     ``measured`` is ``[N, k]``; each value of ``simulated`` is ``[N, k]`` labelled by its key.
     """
     names = list(names)
-    fig, axes = plt.subplots(len(names), 1, figsize=(10, 1.9 * len(names) + 0.6), sharex=True, squeeze=False)
+    fig, axes = _subplots(len(names), 1, figsize=(10, 1.9 * len(names) + 0.6), sharex=True, squeeze=False)
     for c, (ax, name) in enumerate(zip(axes[:, 0], names)):
         ax.plot(time, measured[:, c], color="black", lw=0.8, label="flight")
         for label, sim in simulated.items():
@@ -44,7 +47,7 @@ def plot_time_domain(
 
 def plot_convergence(histories: Mapping[str, np.ndarray], path: str | Path, title: str = "") -> Path:
     """Best cost per generation (log scale), one curve per label (e.g. per trial or method)."""
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, ax = _subplots(figsize=(7, 4))
     for label, history in histories.items():
         h = np.asarray(history, dtype=float)
         ax.plot(np.arange(1, h.size + 1), h, lw=1.0, label=label)
@@ -60,9 +63,15 @@ def plot_convergence(histories: Mapping[str, np.ndarray], path: str | Path, titl
     return _save(fig, path)
 
 
-def _save(fig: plt.Figure, path: str | Path) -> Path:
+def _subplots(*args, figsize: tuple[float, float], **kwargs) -> tuple[Figure, Any]:
+    """``matplotlib.pyplot.subplots`` without pyplot: a figure of ``figsize`` (inches) on its own Agg canvas."""
+    fig = Figure(figsize=figsize)
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(*args, **kwargs)
+
+
+def _save(fig: Figure, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from .data.flight import FlightData
-from .evaluate import default_outputs, simulate_as_scored
+from .data.flight import default_outputs
+from .evaluate import simulate_as_scored
 from .identify import IdentificationResult
 from .io.npz import save_npz
 from .model import PARAM_NAMES

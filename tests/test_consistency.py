@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from jaxheli import load, piloted_flight, save_npz
+from jaxheli.cli.gap import add_check_parser as add_parser
 from jaxheli.gap._regress import hac_lstsq, well_posed
-from jaxheli.gap.consistency import Finding, add_parser, check, correct
+from jaxheli.gap.consistency import Finding, check, correct
 
 KEYS = {"kind", "channels", "estimate", "uncertainty", "significant", "message"}
 

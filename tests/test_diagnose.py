@@ -10,8 +10,9 @@ import pytest
 
 from jaxheli.cost import nmse
 from jaxheli.synth.excitation import Excitation
+from jaxheli.cli.gap import add_diagnose_parser as add_parser
 from jaxheli.effects import plant as augmented, registry as effects
-from jaxheli.gap.diagnose import add_parser, diagnose, effect_eta, predictions, shared_outputs
+from jaxheli.gap.diagnose import diagnose, effect_eta, predictions, shared_outputs
 from jaxheli.gap.predictor import make_predictor
 from jaxheli.io import save_npz
 from jaxheli.model import TABLE2

@@ -142,6 +142,8 @@ def test_launch_local_reports_failure_and_timeout():
 def test_cli_wiring(monkeypatch, capsys, tmp_path):
     import argparse
 
+    from jaxheli.cli.bench import add_trials_scaling_parser
+
     seen = {}
 
     def fake(**kwargs):
@@ -153,7 +155,7 @@ def test_cli_wiring(monkeypatch, capsys, tmp_path):
 
     monkeypatch.setattr(distributed, "trials_scaling", fake)
     parser = argparse.ArgumentParser()
-    distributed.add_parser(parser.add_subparsers())
+    add_trials_scaling_parser(parser.add_subparsers())
     args = parser.parse_args(["trials-scaling", "--trials", "3", "--processes", "1", "2", "--out",
                               str(tmp_path / "s.json")])
     assert args.func(args) == 0

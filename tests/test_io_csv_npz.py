@@ -5,8 +5,9 @@ import json
 import numpy as np
 import pytest
 
+from jaxheli import flights
 from jaxheli.data.flight import FlightData, FlightDataError
-from jaxheli.io import load, load_csv, load_npz, save_csv, save_npz
+from jaxheli.io import load, load_csv, load_npz, save, save_csv, save_npz
 
 HEADER = "time,lat,lon,ped,col,p,q"
 
@@ -148,3 +149,18 @@ def test_load_unknown_format(tmp_path):
         load(path)
     with pytest.raises(FileNotFoundError, match=r"missing\.bin"):
         load(tmp_path / "missing.bin")
+
+
+@pytest.mark.parametrize("name, head", [("f.npz", b"PK"), ("f.NPZ", b"PK"), ("f.csv", b"time"), ("f.txt", b"time")])
+def test_save_picks_the_writer_by_extension_and_load_flight_reads_it(tmp_path, name, head):
+    path = save(_flight(), tmp_path / name)
+    assert path == tmp_path / name and path.read_bytes().startswith(head)
+    _assert_same(_flight(), flights.load_flight(str(path)))
+
+
+def test_load_flight_default_is_the_embedded_flight(monkeypatch, tmp_path):
+    embedded = _flight()
+    monkeypatch.setattr(flights, "default_flight", lambda: embedded)
+    assert flights.load_flight(flights.DEFAULT_DATA) is embedded
+    with pytest.raises(FileNotFoundError, match="no such flight-data file"):
+        flights.load_flight(tmp_path / "default")

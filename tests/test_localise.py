@@ -12,7 +12,7 @@ import jaxheli
 from jaxheli.cost import nmse
 from jaxheli.gap.frequency import estimate_frequency_response, model_frequency_response
 from jaxheli.gap.localise import localise
-from jaxheli.gap.localise_cli import add_parser
+from jaxheli.cli.gap import add_localise_parser as add_parser
 
 DT = 0.01
 N = 4000

@@ -26,7 +26,8 @@ from jaxheli.identify import IdentificationResult, intervals95
 from jaxheli.io import load, save_csv
 from jaxheli.model import PARAM_NAMES, PINNED, TABLE2
 from jaxheli.data.preprocess import lowpass, trim
-from jaxheli.report import SECTION_IDS, add_parser, load_diagnosis, load_flights, load_results, write_report
+from jaxheli.cli.report import add_report_parser as add_parser
+from jaxheli.report import SECTION_IDS, load_diagnosis, load_flights, load_results, write_report
 from jaxheli.report.html import esc, num
 from jaxheli.report.sections import data_summary
 from jaxheli.results import save_result

@@ -1,7 +1,8 @@
-"""The benchmark's markdown tables and its throughput plot."""
+"""The benchmark's markdown tables, its throughput plot and its files."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -46,12 +47,9 @@ def markdown(result: dict) -> str:
 
 def plot_throughput(result: dict, path: str | Path) -> Path:
     """Evaluations per second against population size, one line per method, dtype and flight length."""
-    import matplotlib
+    from ..plots import _subplots
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = _subplots(figsize=(7, 4.5))
     rows = result["rates"]
     for dtype in sorted({r["dtype"] for r in rows}):
         for n in sorted({r["N"] for r in rows}):
@@ -68,5 +66,14 @@ def plot_throughput(result: dict, path: str | Path) -> Path:
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
     return Path(path)
+
+
+def write_bench(result: dict, out: str | Path) -> list[Path]:
+    """Write ``bench.json`` (``result``), ``bench.md`` (:func:`markdown`) and ``throughput.png``
+    (:func:`plot_throughput`) into ``out``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "bench.json").write_text(json.dumps(result, indent=2))
+    (out / "bench.md").write_text(markdown(result))
+    return [out / "bench.json", out / "bench.md", plot_throughput(result, out / "throughput.png")]

@@ -8,7 +8,7 @@ from .frequency import FrequencyResponse as FrequencyResponse, estimate_frequenc
 from .frequency import mismatch as mismatch, model_frequency_response as model_frequency_response
 from .frequency import residual_frequency_response as residual_frequency_response
 from .localise import localise as localise
-from .localise_cli import frequency_comparison as frequency_comparison, localise_model as localise_model
-from .localise_cli import localise_prediction as localise_prediction
+from .compare import frequency_comparison as frequency_comparison, localise_model as localise_model
+from .compare import localise_prediction as localise_prediction
 from .diagnose import diagnose as diagnose, write_diagnosis as write_diagnosis
 from .ranking import diagnose_effects as diagnose_effects, rank_effects as rank_effects

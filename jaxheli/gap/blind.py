@@ -11,7 +11,6 @@ whole batch of trials at once.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import functools
 import json
@@ -231,25 +230,3 @@ def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, **options) 
     records = run_blind([(k, s) for s in range(seeds) for k in kinds], on_batch=save, **options)
     summary = save(records)
     return summary
-
-
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register ``jaxheli blind --seeds N [--kinds ...] --out DIR`` on the CLI's sub-command parsers."""
-    p = subparsers.add_parser("blind", help="blind check of the effect diagnosis on synthetic flights")
-    p.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS, help="effect kinds (default all + none)")
-    p.add_argument("--seeds", type=int, default=2, help="trials per kind (default 2; the Done-when asks 20)")
-    p.add_argument("--duration", type=float, default=30.0, help="flight length, s (default 30)")
-    p.add_argument("--dt", type=float, default=0.05, help="sample time, s (default 0.05)")
-    p.add_argument("--max-steps", type=int, default=20, help="LM steps per candidate fit (default 20)")
-    p.add_argument("--out", default="jaxheli-blind", help="output folder (blind.json, blind.md)")
-    p.set_defaults(func=run_cli)
-    return p
-
-
-def run_cli(args: argparse.Namespace) -> int:
-    """Handler of ``jaxheli blind``: run, print the markdown table, write the files."""
-    summary = run_benchmark(args.kinds, args.seeds, args.out, duration=args.duration, dt=args.dt,
-                            max_steps=args.max_steps)
-    print(markdown(summary))
-    print(f"runtime {summary['runtime_s']:.0f} s; wrote {Path(args.out) / 'blind.json'} and blind.md")
-    return 0

@@ -27,7 +27,6 @@ channels carry no heading angle.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import math
@@ -406,18 +405,18 @@ def _applied_scale(s: float, sigma: float) -> float:
     return math.copysign(abs(s) if _beyond(abs(s) - 1.0, sigma, "velocity_scale") else 1.0, s)
 
 
-# ---- report and command line --------------------------------------------------------------------------------
+# ---- report --------------------------------------------------------------------------------------------------
 
 
 def plot_kinematics(flight: FlightData, corrected: FlightData, path: str | Path) -> Path:
     """PNG of the kinematic comparison per axis: d(angle)/dt against the rate-implied ``c rate + e``, before
     and after :func:`correct` (signals low-passed as in the check)."""
-    from ..plots import _save, plt
+    from ..plots import _save, _subplots
 
     columns = (("recorded", flight), ("corrected", corrected))
     terms = [_kinematic_terms(f)[1] for _, f in columns]
     keys = list(terms[0]) or [("none", "-", "-")]
-    fig, axes = plt.subplots(len(keys), 2, figsize=(13, 2.4 * len(keys) + 0.6), sharex="col", squeeze=False)
+    fig, axes = _subplots(len(keys), 2, figsize=(13, 2.4 * len(keys) + 0.6), sharex="col", squeeze=False)
     for row, key in enumerate(keys):
         for (label, f), term, ax in zip(columns, terms, axes[row]):
             if key in term:
@@ -435,31 +434,14 @@ def plot_kinematics(flight: FlightData, corrected: FlightData, path: str | Path)
     return _save(fig, path)
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register ``jaxheli check FILE --out DIR`` on the CLI's sub-command parsers."""
-    p = subparsers.add_parser("check", help="data-consistency check of a flight (kinematics, velocity frame, biases)")
-    p.add_argument("file", metavar="FILE", help="flight file (.mat .csv .npz .px4log .bin) or 'default'")
-    p.add_argument("--out", default="jaxheli-check", help="output folder (consistency.json, consistency.png)")
-    p.set_defaults(func=run_check)
-    return p
-
-
-def run_check(args: argparse.Namespace) -> int:
-    """Handler of ``jaxheli check``: print the findings, write ``OUT/consistency.json`` and the PNG."""
-    from ..cli import _load_flight
-
-    flight = _load_flight(args.file)
-    findings = check(flight)
-    out = Path(args.out)
+def write_check(flight: FlightData, findings: list[Finding], out: str | Path) -> list[Path]:
+    """Write ``consistency.json`` (the findings' :meth:`Finding.to_json`) and ``consistency.png``
+    (:func:`plot_kinematics` of ``flight`` before and after :func:`correct`) into ``out``."""
+    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    print(f"consistency of {flight.source} ({flight.n_samples} samples, dt {flight.dt:.4g} s); * = significant")
-    for f in findings:
-        print(f"{'*' if f.significant else ' '} {f.kind:<16} {','.join(f.channels):<10} {f.message}")
     path = out / "consistency.json"
     path.write_text(json.dumps([f.to_json() for f in findings], indent=2))
-    print(f"wrote {path}")
-    print(f"wrote {plot_kinematics(flight, correct(flight, findings), out / 'consistency.png')}")
-    return 0
+    return [path, plot_kinematics(flight, correct(flight, findings), out / "consistency.png")]
 
 
 # ---- helpers -----------------------------------------------------------------------------------------------

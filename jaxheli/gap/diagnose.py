@@ -1,9 +1,9 @@
-"""How far the gap shrinks: the whole diagnosis of a model on a training and a validation flight, and the
-``jaxheli diagnose`` command (``add_parser`` is called from :mod:`jaxheli.cli`).
+"""How far the gap shrinks: the whole diagnosis of a model on a training and a validation flight, its files
+and its ranking table (what ``jaxheli diagnose`` writes and prints).
 
 Composes the pieces of :mod:`jaxheli.gap`: the data-consistency findings of both flights
 (:func:`~jaxheli.gap.consistency.check`), where the base model misses the validation flight
-(:func:`~jaxheli.gap.localise_cli.localise_prediction`), and the candidate effects fitted on the training flight
+(:func:`~jaxheli.gap.compare.localise_prediction`), and the candidate effects fitted on the training flight
 and ranked by their shrink of the validation gap (:func:`~jaxheli.gap.ranking.diagnose_effects`).
 
 Every gap here is the segment-wise predictor's (:mod:`jaxheli.gap.predictor`: restarts from the
@@ -13,7 +13,6 @@ base gap are one and the same number.
 
 from __future__ import annotations
 
-import argparse
 import json
 from collections.abc import Sequence
 from pathlib import Path
@@ -32,7 +31,7 @@ from ..model import G_SI, MEASURABLE
 from ..effects import registry as fx
 from ..effects.plant import no_effect
 from .consistency import check
-from .localise_cli import localise_prediction
+from .compare import frequency_comparison, localise_prediction
 from .predictor import TRACK, Predictor, make_predictor
 from .ranking import diagnose_effects, predictor_pair
 
@@ -192,7 +191,6 @@ def write_diagnosis(
 ) -> list[Path]:
     """Write ``diagnosis.json``, ``consistency.json`` and the PNGs (residual bands, lag correlation, frequency
     response, before/after time histories on ``validate``) into ``out``."""
-    from .localise_cli import frequency_comparison
     from .plots import plot_frequency_response, plot_lag_correlation, plot_residual_bands
 
     out = Path(out)
@@ -221,19 +219,14 @@ def plot_before_after(
     flight: FlightData, predicted: Float[np.ndarray, "C N k"], labels: Sequence[str], path: str | Path,
 ) -> Path:
     """Time histories per channel: the flight's measurement and each prediction ``predicted[c]`` (``labels[c]``)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ..plots import _save
+    from ..plots import _save, _subplots
 
     predicted = np.asarray(predicted)
     if predicted.shape[1:] != flight.outputs.shape or predicted.shape[0] != len(labels):
         raise ValueError(f"plot_before_after: predictions {predicted.shape} must be [{len(labels)}, "
                          f"{', '.join(map(str, flight.outputs.shape))}] for {flight.source}")
     k = len(flight.output_names)
-    fig, axes = plt.subplots(k, 1, figsize=(10, 1.6 * k + 0.8), sharex=True, squeeze=False)
+    fig, axes = _subplots(k, 1, figsize=(10, 1.6 * k + 0.8), sharex=True, squeeze=False)
     t = flight.time - flight.time[0]
     units = flight.units
     for c, (ax, name) in enumerate(zip(axes[:, 0], flight.output_names)):
@@ -247,35 +240,6 @@ def plot_before_after(
     fig.suptitle(f"{flight.source}: before and after the effect (validation flight)", fontsize=10)
     fig.tight_layout()
     return _save(fig, path)
-
-
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Add ``jaxheli diagnose --model M --train FILE --validate FILE --out DIR`` to the CLI's sub-parsers."""
-    p = subparsers.add_parser("diagnose", help="which unmodelled effect explains a model's gap, and how far it shrinks")
-    p.add_argument("--model", required=True, help="result.json / parameters JSON, or a named set: table2")
-    p.add_argument("--train", required=True, help="flight the effects are fitted on (file or 'default')")
-    p.add_argument("--validate", required=True, help="held-out flight the shrink is measured on")
-    p.add_argument("--out", default="jaxheli-diagnose", help="output folder (diagnosis.json, consistency.json, PNGs)")
-    p.add_argument("--outputs", default=None, help="comma-separated channels (default: those both flights share)")
-    p.add_argument("--effects", default=",".join(fx.ALL),
-                   help=f"comma-separated candidates (default: {','.join(fx.ALL)})")
-    p.add_argument("--segment", type=float, default=2.0, help="restart interval of the predictions, s (default 2)")
-    p.add_argument("--track", type=float, default=None,
-                   help="restart filter's process noise per sample, in measurement-noise stds (default: the level "
-                        "of 0.1-10 that suits the model best on the training flight)")
-    p.add_argument("--top", type=int, default=3, help="significant effects fitted jointly (default 3)")
-    p.add_argument("--g", type=float, default=G_SI, help="gravity, m/s^2 (default 9.81)")
-    p.add_argument("--max-steps", type=int, default=40, help="Levenberg-Marquardt steps per candidate (default 40)")
-    p.add_argument("--min-shrink", type=float, default=3.0,
-                   help="smallest significant held-out shrink, %% (default 3: the blind check's noise floor)")
-    p.add_argument("--correct", action="store_true",
-                   help="apply each flight's significant consistency findings (jaxheli check) before diagnosing")
-    p.add_argument("--train-trim", type=int, default=0,
-                   help="drop this many samples at each end of the training flight")
-    p.add_argument("--train-lowpass", type=float, default=None, help="zero-phase low-pass of the training flight, Hz")
-    p.add_argument("--train-dt", type=float, default=None, help="resample the training flight to this step, s")
-    p.set_defaults(func=_cmd_diagnose)
-    return p
 
 
 def prepare(
@@ -294,32 +258,6 @@ def prepare(
     if lowpass_hz:
         flight = lowpass(flight, lowpass_hz)
     return resample(flight, dt) if dt else flight
-
-
-def _cmd_diagnose(args: argparse.Namespace) -> int:
-    from ..cli import _load_flight, _outputs
-
-    chosen = tuple(e.strip() for e in args.effects.split(",") if e.strip())
-    unknown = [e for e in chosen if e not in fx.ALL]
-    if unknown or not chosen:
-        raise SystemExit(f"jaxheli diagnose: --effects: unknown effect(s) {unknown}; candidates are {fx.ALL}")
-    theta = resolve_params(args.model)
-    train = prepare(_load_flight(args.train), correct_data=args.correct, trim_samples=args.train_trim,
-                    lowpass_hz=args.train_lowpass, dt=args.train_dt)
-    validate = prepare(_load_flight(args.validate), correct_data=args.correct)
-    diagnosis = diagnose(
-        args.model, train, validate, outputs=_outputs(args.outputs), effects=chosen, segment=args.segment,
-        top=args.top, g=args.g, max_steps=args.max_steps, min_shrink=args.min_shrink, track=args.track,
-    )
-    print(f"diagnosis of {args.model}: trained on {train.source}, validated on {validate.source} "
-          f"(segment {args.segment:g} s, restart filter level {diagnosis['track']:g}; "
-          f"channels {','.join(diagnosis['outputs'])})")
-    for line in ranking_table(diagnosis):
-        print(line)
-    print(f"verdict: {diagnosis['verdict']}")
-    for path in write_diagnosis(diagnosis, theta, validate, args.out):
-        print(f"wrote {path}")
-    return 0
 
 
 def ranking_table(diagnosis: dict[str, Any]) -> list[str]:

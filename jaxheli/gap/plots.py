@@ -5,15 +5,11 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..model import INPUT_NAMES  # noqa: E402
-from ..plots import _save  # noqa: E402
-from .frequency import FrequencyResponse  # noqa: E402
+from ..model import INPUT_NAMES
+from ..plots import _save, _subplots
+from .frequency import FrequencyResponse
 
 PRIMARY_PAIRS: tuple[tuple[str, str], ...] = (
     ("lat", "p"), ("lat", "phi"), ("lat", "v"), ("lon", "q"), ("lon", "theta"), ("lon", "u"),
@@ -33,7 +29,7 @@ def plot_residual_bands(localisation: Mapping[str, object], path: str | Path, ti
                     for b in bands])
     above = np.array([[b["coherence"][n] is not None and b["coherence"][n]["verdict"] == "structure" for n in names]
                       for b in bands])
-    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.2))
+    fig, (left, right) = _subplots(1, 2, figsize=(12, 4.2))
     x = np.arange(len(names))
     bottom = np.zeros(len(names))
     for label, share in zip(labels, shares):
@@ -66,7 +62,7 @@ def plot_lag_correlation(localisation: Mapping[str, object], path: str | Path, t
     lags = np.asarray(lag["lags_s"])
     inputs = list(localisation["inputs"])
     names = list(localisation["channel"])
-    fig, axes = plt.subplots(len(inputs), len(names), figsize=(1.9 * len(names) + 1, 1.6 * len(inputs) + 0.8),
+    fig, axes = _subplots(len(inputs), len(names), figsize=(1.9 * len(names) + 1, 1.6 * len(inputs) + 0.8),
                              sharex=True, sharey=True, squeeze=False)
     for (r, i), (c, n) in ((a, b) for a in enumerate(inputs) for b in enumerate(names)):
         pair = lag["pairs"][f"{i}->{n}"]
@@ -106,7 +102,7 @@ def plot_frequency_response(
         raise ValueError(f"plot_frequency_response: no pair of {pairs or PRIMARY_PAIRS} in {inputs} x {outputs}")
     models = {} if model is None else dict(model) if isinstance(model, Mapping) else {"model": model}
     f = np.asarray(flight.freq)
-    fig, axes = plt.subplots(3, len(chosen), figsize=(2.8 * len(chosen) + 0.5, 7), sharex=True, squeeze=False)
+    fig, axes = _subplots(3, len(chosen), figsize=(2.8 * len(chosen) + 0.5, 7), sharex=True, squeeze=False)
     for c, (i, o) in enumerate(chosen):
         k, m = outputs.index(o), inputs.index(i)
         H = np.asarray(flight.response)[:, k, m]

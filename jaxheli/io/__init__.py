@@ -1,4 +1,5 @@
-"""Flight-data readers and writers: ``load`` picks the reader from the file's extension or first bytes."""
+"""Flight-data readers and writers: ``load`` picks the reader from the file's extension or first bytes, ``save``
+the writer from the extension."""
 
 from __future__ import annotations
 
@@ -46,3 +47,10 @@ def load(path: str | Path, **options: Any) -> FlightData:
                 f"supported: {', '.join(READERS)}"
             )
     return reader(path, **options)
+
+
+def save(flight: FlightData, path: str | Path) -> Path:
+    """Write ``flight`` as ``.npz`` (:func:`save_npz`) when ``path`` has that extension, else as CSV
+    (:func:`save_csv`); returns the path."""
+    path = Path(path)
+    return (save_npz if path.suffix.lower() == ".npz" else save_csv)(flight, path)

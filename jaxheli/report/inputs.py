@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..data.flight import FlightData
+from ..flights import load_flight
 from ..model import params_array
 
 
@@ -93,19 +94,17 @@ def load_flights(results: Sequence[ResultSource], data: Sequence[str | Path] = (
     """The flights to plot: ``data`` when given (files, or ``default`` for the embedded flight), else each
     result's training and validation flights as fitted (the NPZ files its ``data`` block names, preprocessing
     included), falling back to the source files its settings name where those are missing; each flight once."""
-    from ..cli import _load_flight
-
     if data:
-        return [_load_flight(str(d)) for d in data]
+        return [load_flight(str(d)) for d in data]
     found: dict[tuple[str, str, int], FlightData] = {}
     for r in results:
         for role in ("train", "validate"):
             saved = (r.content.get("data") or {}).get(role)
             source = r.settings.get(f"{role}_source")
             if saved and (r.folder / saved).is_file():
-                flight = _load_flight(str(r.folder / saved))
+                flight = load_flight(str(r.folder / saved))
             elif source and Path(source).is_file():
-                flight = _load_flight(source)
+                flight = load_flight(source)
             else:
                 continue
             key = (flight.source, json.dumps(flight.metadata.get("preprocessing", []), default=str), flight.n_samples)

@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 
 from ..cost import metrics as channel_metrics
-from ..evaluate import default_outputs, simulate_as_scored
+from ..data.flight import default_outputs
+from ..evaluate import simulate_as_scored
 from ..data.flight import FlightData
 from ..model import G_SI, PARAM_NAMES, PINNED, STATE_UNITS
 from ..results import PLOT_CHANNELS

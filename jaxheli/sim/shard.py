@@ -23,11 +23,6 @@ MIN_PER_DEVICE = 32
 """Smaller shards are not worth the extra dispatch; below ``MIN_PER_DEVICE`` per device one device runs."""
 
 
-def device_count() -> int:
-    """Local devices a population would be spread over."""
-    return jax.local_device_count()
-
-
 def map_population(fn: Callable[..., Array], thetas: Array, *shared, shard: bool | None = None) -> Array:
     """``fn(thetas, *shared)`` with the leading (population) axis of ``thetas`` and of the result split over
     the local devices; ``shared`` (pytrees of arrays) go to every device whole.

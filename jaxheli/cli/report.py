@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 
+from ..report.build import write_report
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+
+def add_report_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``report`` on the ``jaxheli`` command line."""
     p = subparsers.add_parser(
         "report",
@@ -21,14 +23,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
                    help="flight file to plot (repeatable; 'default' for the embedded flight); default: the training "
                    "and validation files recorded in each result.json, when they exist")
     p.add_argument("--out", default="report.html", help="output HTML file (default report.html)")
-    p.set_defaults(func=run)
+    p.set_defaults(func=_cmd_report)
     return p
 
 
-def run(args: argparse.Namespace) -> int:
-    """Handler of ``jaxheli report``: write the HTML file and print its path."""
-    from .build import write_report
-
+def _cmd_report(args: argparse.Namespace) -> int:
     path = write_report(args.results, args.out, diagnosis=args.diagnosis, data=args.data)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
     return 0

@@ -1,16 +1,16 @@
-"""Localise a model's gap on a flight end to end (simulate, localise, flight vs model frequency response)
-and the ``jaxheli localise`` command (``add_parser`` is called from :mod:`jaxheli.cli`)."""
+"""A model against a flight end to end: simulate it, localise its gap (:func:`~jaxheli.gap.localise.localise`),
+compare its frequency response with the flight's estimate, and write the report and plots."""
 
 from __future__ import annotations
 
-import argparse
 import json
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from ..evaluate import default_outputs, resolve_params
+from ..data.flight import default_outputs
+from ..evaluate import resolve_params
 from ..data.flight import FlightData
 from ..sim.initial_state import estimate_x0
 from ..model import G_SI, INPUT_NAMES
@@ -102,44 +102,3 @@ def write_localisation(report: dict, theta: np.ndarray, flight: FlightData, out:
         plot_lag_correlation(report, out / "lag_correlation.png"),
         plot_frequency_response(estimate, model, names, out / "frequency_response.png", title=flight.source),
     ]
-
-
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Add ``jaxheli localise --model M --data FILE --out DIR`` to the CLI's sub-parsers."""
-    from ..cli import DEFAULT_DATA, _add_sim_options
-
-    p = subparsers.add_parser("localise", help="where a model misses a flight: by channel, band, time window, lag")
-    p.add_argument("--model", required=True, help="result.json / parameters JSON, or a named set: table2")
-    p.add_argument("--data", default=DEFAULT_DATA, help="flight file or 'default'")
-    p.add_argument("--x0", choices=("estimate", "zero", "measured"), default="estimate", help="initial state")
-    p.add_argument("--window", type=float, default=5.0, help="time window, s (default 5)")
-    p.add_argument("--max-lag", type=float, default=1.0, help="largest input-residual lag, s (default 1)")
-    p.add_argument("--out", default="jaxheli-localise", help="output folder (localisation.json, PNGs)")
-    _add_sim_options(p)
-    p.set_defaults(func=_cmd_localise)
-    return p
-
-
-def _cmd_localise(args: argparse.Namespace) -> int:
-    from ..cli import _load_flight, _outputs, _sim_options
-
-    flight = _load_flight(args.data)
-    theta = resolve_params(args.model)
-    report, _ = localise_model(
-        theta, flight, outputs=_outputs(args.outputs), x0=args.x0,
-        localise_options={"window_seconds": args.window, "max_lag_seconds": args.max_lag}, **_sim_options(args),
-    )
-    s = report["summary"]
-    print(f"gap of {args.model} on {flight.source}:")
-    print("  nmse   " + "  ".join(f"{n} {c['nmse']:.3g}" for n, c in report["channel"].items()))
-    print(f"  worst channel {s['worst_channel']} (nmse {s['worst_channel_nmse']:.3g}); "
-          f"{100 * s['worst_band_share']:.0f}% of it in {s['worst_band_hz'][0]:g}-{s['worst_band_hz'][1]:.3g} Hz "
-          f"({s['worst_band_verdict']})")
-    print(f"  top window {s['top_window_s'][0]:.4g}-{s['top_window_s'][1]:.4g} s "
-          f"({100 * s['top_window_share']:.0f}% of the energy); amplitude link: {s['amplitude_link']}")
-    lag = s["strongest_lag"]
-    print(f"  strongest lag {lag['input']}->{lag['channel']} {lag['peak_lag_s']:.3g} s, rho {lag['peak_value']:.3f} "
-          f"(threshold {lag['threshold']:.3f})")
-    for path in write_localisation(report, theta, flight, args.out):
-        print(f"wrote {path}")
-    return 0

@@ -1,0 +1,130 @@
+"""One run of ``jaxheli bench``: every performance measurement of the cost kernels, as a JSON-ready dict."""
+
+from __future__ import annotations
+
+import os
+import platform
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from ..data.flight import FlightData
+
+SCAN_LIMIT = 4.0e7
+"""The plain scan materialises ``[P, N, k]`` outputs: larger ``P * N`` are skipped (memory, not speed)."""
+QUICK = dict(sizes=[16, 64], samples=[300], dtypes=["float32"], generations=2, experiment_iterations=3, trials=2,
+             repeats=1)
+"""Tiny settings of :func:`measure` (a smoke test, seconds)."""
+
+
+def measure(
+    *,
+    sizes: Sequence[int],
+    samples: Sequence[int],
+    dtypes: Sequence[str],
+    repeats: int,
+    generations: int,
+    experiment_iterations: int,
+    trials: int,
+    experiment_data: str | None = None,
+    quick: bool = False,
+    settings: dict[str, Any] | None = None,
+) -> dict:
+    """Every measurement of one run, as a JSON-ready dict (printing a line per rate measured).
+
+    Candidate evaluations per second (best of ``repeats``) for each dtype (``"float32"``, ``"float64"``),
+    flight length ``samples`` and population size ``sizes``; seconds per IWO generation, timed over
+    ``generations`` (0: skip); the paper's experiment, ``trials`` x ``experiment_iterations`` generations
+    (0: skip), on the flight file ``experiment_data`` (default: flight A from the shared data if present, else
+    a synthetic 8590-sample flight; with ``quick`` the shortest synthetic flight of ``samples``). ``settings``
+    is recorded as the result's ``settings`` (default: these arguments).
+    """
+    import jax
+    import jax.numpy as jnp
+
+    from ..sim.simulate import make_simulator
+    from .baseline import mealpy_rate, numpy_rate
+    from .throughput import bench_flight, candidates, evaluation_rate, flops_per_candidate, generation_seconds
+    from .throughput import matmul_peak
+
+    devices = jax.local_device_count()
+    result: dict = {
+        "machine": f"{platform.machine()} {platform.processor() or ''}, {os.cpu_count()} cores, "
+        f"jax {jax.__version__}, backend {jax.default_backend()} ({jax.devices()[0].device_kind}), "
+        f"{devices} device(s)",
+        "devices": devices,
+        "settings": settings if settings is not None else {
+            "sizes": sizes, "samples": samples, "dtypes": dtypes, "repeats": repeats, "generations": generations,
+            "experiment_iterations": experiment_iterations, "trials": trials, "experiment_data": experiment_data,
+            "quick": quick},
+        "matmul_peak_flops": {},
+        "rates": [],
+        "iwo_generation": [],
+        "scaling": [],
+    }
+    flights = {n: bench_flight(n) for n in samples}
+    baselines = {n: numpy_rate(f, max(2, min(20, 60000 // n))) for n, f in flights.items()}
+    for dtype_name in dtypes:
+        dtype = jnp.dtype(dtype_name)
+        peak = matmul_peak(dtype)
+        result["matmul_peak_flops"][dtype_name] = peak
+        for n, flight in flights.items():
+            target = jnp.asarray(flight.outputs, dtype)
+            sims = {m: make_simulator(flight, method=m) for m in ("scan", "blocked")}
+            for p in sizes:
+                thetas = candidates(p, dtype)
+                row = {"dtype": dtype_name, "N": n, "P": p, "numpy": baselines[n],
+                       "flop_limit": peak / flops_per_candidate(n)}
+                for method, sim in sims.items():
+                    if method == "scan" and p * n > SCAN_LIMIT:
+                        continue
+                    row[method] = evaluation_rate(sim, thetas, target, repeats, shard=False)
+                if devices > 1 and p >= 400:
+                    sharded = evaluation_rate(sims["blocked"], thetas, target, repeats, shard=True)
+                    result["scaling"].append({"dtype": dtype_name, "N": n, "P": p, "single": row["blocked"],
+                                              "sharded": sharded})
+                    row["blocked"] = max(row["blocked"], sharded)
+                result["rates"].append(row)
+                print(_row_text(row), flush=True)
+            if generations > 0:
+                for method, sim in sims.items():
+                    seconds = generation_seconds(sim, target, generations)
+                    result["iwo_generation"].append({"dtype": dtype_name, "N": n, "method": method, "seconds": seconds})
+    mid = min(flights, key=lambda n: abs(n - 8590))
+    rate = mealpy_rate(flights[mid])
+    result["mealpy"] = None if rate is None else {"N": mid, "rate": rate}
+    if experiment_iterations > 0:
+        flight = bench_flight(min(samples)) if quick else _experiment_flight(experiment_data)
+        result["experiment"] = _experiment(flight, trials, experiment_iterations, baselines)
+    return result
+
+
+def _experiment(flight: FlightData, trials: int, iterations: int, baselines: dict[int, float]) -> dict:
+    import jax
+    import jax.numpy as jnp
+
+    from .baseline import numpy_rate
+    from .experiment import paper_experiment
+
+    e = paper_experiment(flight, trials=trials, iterations=iterations, dtype=jnp.float32, progress=True)
+    e["numpy_rate"] = baselines.get(flight.n_samples) or numpy_rate(flight, 4)
+    e["devices"] = jax.local_device_count()
+    return e
+
+
+def _experiment_flight(spec: str | None) -> FlightData:
+    from ..io import load
+    from ..io.paths import data_file
+    from .throughput import CHANNELS, bench_flight
+
+    if spec:
+        return load(spec).select(CHANNELS)
+    try:
+        return load(data_file("trex550/Data_graphready.mat")).select(CHANNELS)
+    except FileNotFoundError:
+        return bench_flight(8590)
+
+
+def _row_text(row: dict) -> str:
+    parts = [f"{m} {row[m]:.0f}/s ({row[m] / row['numpy']:.0f}x NumPy)" for m in ("scan", "blocked") if m in row]
+    return f"{row['dtype']} N={row['N']} P={row['P']}: " + ", ".join(parts)

@@ -1,0 +1,45 @@
+"""Command line: ``jaxheli identify | evaluate | synth | check | localise | diagnose | blind | bench |
+trials-scaling | report`` (``jaxheli COMMAND --help``).
+
+Each module registers the parsers of one command group and holds their handlers, which parse arguments, call
+the library and print or write: :mod:`~jaxheli.cli.identify` (identify, evaluate, synth),
+:mod:`~jaxheli.cli.gap` (check, localise, diagnose, blind), :mod:`~jaxheli.cli.bench` (bench, trials-scaling),
+:mod:`~jaxheli.cli.report` (report); :mod:`~jaxheli.cli._options` holds the options several commands share.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .bench import add_bench_parser, add_trials_scaling_parser
+from .gap import add_blind_parser, add_check_parser, add_diagnose_parser, add_localise_parser
+from .identify import add_evaluate_parser, add_identify_parser, add_synth_parser
+from .report import add_report_parser
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``jaxheli`` argument parser (all sub-commands)."""
+    parser = argparse.ArgumentParser(
+        prog="jaxheli",
+        description="System identification of small unmanned helicopters (Mettler's 13-state hover model) in JAX.",
+    )
+    parser.add_argument("--float32", action="store_true", help="compute in float32 (faster; default float64)")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for add in (add_identify_parser, add_evaluate_parser, add_synth_parser, add_check_parser, add_localise_parser,
+                add_diagnose_parser, add_blind_parser, add_bench_parser, add_trials_scaling_parser, add_report_parser):
+        add(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``jaxheli`` command."""
+    args = build_parser().parse_args(argv)
+    import jax
+
+    jax.config.update("jax_enable_x64", not args.float32)
+    try:
+        return args.func(args)
+    except (FileNotFoundError, ValueError) as err:
+        print(f"jaxheli {args.command}: error: {err}", file=sys.stderr)
+        return 2

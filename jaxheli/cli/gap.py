@@ -1,0 +1,149 @@
+"""``jaxheli check | localise | diagnose | blind``: data consistency, where a model misses a flight, which
+unmodelled effect explains the gap, and the blind check of that diagnosis."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..effects import registry as fx
+from ..evaluate import resolve_params
+from ..flights import DEFAULT_DATA, load_flight
+from ..gap.blind import KINDS, markdown, run_benchmark
+from ..gap.compare import localise_model, write_localisation
+from ..gap.consistency import check, write_check
+from ..gap.diagnose import diagnose, prepare, ranking_table, write_diagnosis
+from ..model import G_SI
+from ._options import add_sim_options, outputs, sim_options
+
+
+def add_check_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register ``jaxheli check FILE --out DIR`` on the CLI's sub-command parsers."""
+    p = subparsers.add_parser("check", help="data-consistency check of a flight (kinematics, velocity frame, biases)")
+    p.add_argument("file", metavar="FILE", help="flight file (.mat .csv .npz .px4log .bin) or 'default'")
+    p.add_argument("--out", default="jaxheli-check", help="output folder (consistency.json, consistency.png)")
+    p.set_defaults(func=_cmd_check)
+    return p
+
+
+def add_localise_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register ``jaxheli localise --model M --data FILE --out DIR`` on the CLI's sub-command parsers."""
+    p = subparsers.add_parser("localise", help="where a model misses a flight: by channel, band, time window, lag")
+    p.add_argument("--model", required=True, help="result.json / parameters JSON, or a named set: table2")
+    p.add_argument("--data", default=DEFAULT_DATA, help="flight file or 'default'")
+    p.add_argument("--x0", choices=("estimate", "zero", "measured"), default="estimate", help="initial state")
+    p.add_argument("--window", type=float, default=5.0, help="time window, s (default 5)")
+    p.add_argument("--max-lag", type=float, default=1.0, help="largest input-residual lag, s (default 1)")
+    p.add_argument("--out", default="jaxheli-localise", help="output folder (localisation.json, PNGs)")
+    add_sim_options(p)
+    p.set_defaults(func=_cmd_localise)
+    return p
+
+
+def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register ``jaxheli diagnose --model M --train FILE --validate FILE --out DIR`` on the CLI's sub-command
+    parsers."""
+    p = subparsers.add_parser("diagnose", help="which unmodelled effect explains a model's gap, and how far it shrinks")
+    p.add_argument("--model", required=True, help="result.json / parameters JSON, or a named set: table2")
+    p.add_argument("--train", required=True, help="flight the effects are fitted on (file or 'default')")
+    p.add_argument("--validate", required=True, help="held-out flight the shrink is measured on")
+    p.add_argument("--out", default="jaxheli-diagnose", help="output folder (diagnosis.json, consistency.json, PNGs)")
+    p.add_argument("--outputs", default=None, help="comma-separated channels (default: those both flights share)")
+    p.add_argument("--effects", default=",".join(fx.ALL),
+                   help=f"comma-separated candidates (default: {','.join(fx.ALL)})")
+    p.add_argument("--segment", type=float, default=2.0, help="restart interval of the predictions, s (default 2)")
+    p.add_argument("--track", type=float, default=None,
+                   help="restart filter's process noise per sample, in measurement-noise stds (default: the level "
+                        "of 0.1-10 that suits the model best on the training flight)")
+    p.add_argument("--top", type=int, default=3, help="significant effects fitted jointly (default 3)")
+    p.add_argument("--g", type=float, default=G_SI, help="gravity, m/s^2 (default 9.81)")
+    p.add_argument("--max-steps", type=int, default=40, help="Levenberg-Marquardt steps per candidate (default 40)")
+    p.add_argument("--min-shrink", type=float, default=3.0,
+                   help="smallest significant held-out shrink, %% (default 3: the blind check's noise floor)")
+    p.add_argument("--correct", action="store_true",
+                   help="apply each flight's significant consistency findings (jaxheli check) before diagnosing")
+    p.add_argument("--train-trim", type=int, default=0,
+                   help="drop this many samples at each end of the training flight")
+    p.add_argument("--train-lowpass", type=float, default=None, help="zero-phase low-pass of the training flight, Hz")
+    p.add_argument("--train-dt", type=float, default=None, help="resample the training flight to this step, s")
+    p.set_defaults(func=_cmd_diagnose)
+    return p
+
+
+def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register ``jaxheli blind --seeds N [--kinds ...] --out DIR`` on the CLI's sub-command parsers."""
+    p = subparsers.add_parser("blind", help="blind check of the effect diagnosis on synthetic flights")
+    p.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS, help="effect kinds (default all + none)")
+    p.add_argument("--seeds", type=int, default=2, help="trials per kind (default 2; the Done-when asks 20)")
+    p.add_argument("--duration", type=float, default=30.0, help="flight length, s (default 30)")
+    p.add_argument("--dt", type=float, default=0.05, help="sample time, s (default 0.05)")
+    p.add_argument("--max-steps", type=int, default=20, help="LM steps per candidate fit (default 20)")
+    p.add_argument("--out", default="jaxheli-blind", help="output folder (blind.json, blind.md)")
+    p.set_defaults(func=_cmd_blind)
+    return p
+
+
+def _cmd_check(args: argparse.Namespace) -> int:
+    flight = load_flight(args.file)
+    findings = check(flight)
+    print(f"consistency of {flight.source} ({flight.n_samples} samples, dt {flight.dt:.4g} s); * = significant")
+    for f in findings:
+        print(f"{'*' if f.significant else ' '} {f.kind:<16} {','.join(f.channels):<10} {f.message}")
+    for path in write_check(flight, findings, args.out):
+        print(f"wrote {path}")
+    return 0
+
+
+def _cmd_localise(args: argparse.Namespace) -> int:
+    flight = load_flight(args.data)
+    theta = resolve_params(args.model)
+    report, _ = localise_model(
+        theta, flight, outputs=outputs(args.outputs), x0=args.x0,
+        localise_options={"window_seconds": args.window, "max_lag_seconds": args.max_lag}, **sim_options(args),
+    )
+    s = report["summary"]
+    print(f"gap of {args.model} on {flight.source}:")
+    print("  nmse   " + "  ".join(f"{n} {c['nmse']:.3g}" for n, c in report["channel"].items()))
+    print(f"  worst channel {s['worst_channel']} (nmse {s['worst_channel_nmse']:.3g}); "
+          f"{100 * s['worst_band_share']:.0f}% of it in {s['worst_band_hz'][0]:g}-{s['worst_band_hz'][1]:.3g} Hz "
+          f"({s['worst_band_verdict']})")
+    print(f"  top window {s['top_window_s'][0]:.4g}-{s['top_window_s'][1]:.4g} s "
+          f"({100 * s['top_window_share']:.0f}% of the energy); amplitude link: {s['amplitude_link']}")
+    lag = s["strongest_lag"]
+    print(f"  strongest lag {lag['input']}->{lag['channel']} {lag['peak_lag_s']:.3g} s, rho {lag['peak_value']:.3f} "
+          f"(threshold {lag['threshold']:.3f})")
+    for path in write_localisation(report, theta, flight, args.out):
+        print(f"wrote {path}")
+    return 0
+
+
+def _cmd_diagnose(args: argparse.Namespace) -> int:
+    chosen = tuple(e.strip() for e in args.effects.split(",") if e.strip())
+    unknown = [e for e in chosen if e not in fx.ALL]
+    if unknown or not chosen:
+        raise SystemExit(f"jaxheli diagnose: --effects: unknown effect(s) {unknown}; candidates are {fx.ALL}")
+    theta = resolve_params(args.model)
+    train = prepare(load_flight(args.train), correct_data=args.correct, trim_samples=args.train_trim,
+                    lowpass_hz=args.train_lowpass, dt=args.train_dt)
+    validate = prepare(load_flight(args.validate), correct_data=args.correct)
+    diagnosis = diagnose(
+        args.model, train, validate, outputs=outputs(args.outputs), effects=chosen, segment=args.segment,
+        top=args.top, g=args.g, max_steps=args.max_steps, min_shrink=args.min_shrink, track=args.track,
+    )
+    print(f"diagnosis of {args.model}: trained on {train.source}, validated on {validate.source} "
+          f"(segment {args.segment:g} s, restart filter level {diagnosis['track']:g}; "
+          f"channels {','.join(diagnosis['outputs'])})")
+    for line in ranking_table(diagnosis):
+        print(line)
+    print(f"verdict: {diagnosis['verdict']}")
+    for path in write_diagnosis(diagnosis, theta, validate, args.out):
+        print(f"wrote {path}")
+    return 0
+
+
+def _cmd_blind(args: argparse.Namespace) -> int:
+    summary = run_benchmark(args.kinds, args.seeds, args.out, duration=args.duration, dt=args.dt,
+                            max_steps=args.max_steps)
+    print(markdown(summary))
+    print(f"runtime {summary['runtime_s']:.0f} s; wrote {Path(args.out) / 'blind.json'} and blind.md")
+    return 0

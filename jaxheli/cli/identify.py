@@ -1,0 +1,121 @@
+"""``jaxheli identify | evaluate | synth``: fit the 40 parameters, score a model on a flight, write a flight."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from ..flights import DEFAULT_DATA, load_flight
+from ._options import add_sim_options, outputs, sim_options
+
+
+def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register ``identify`` on the ``jaxheli`` command line."""
+    p = subparsers.add_parser("identify", help="fit the 40 parameters to a flight (IWO, GA, PEM, IWO + polish)")
+    p.add_argument("--method", choices=("iwo", "ga", "pem", "iwo+polish"), default="iwo+polish")
+    p.add_argument("--train", default=DEFAULT_DATA, help="training flight file or 'default' (the embedded flight)")
+    p.add_argument("--validate", default=None, help="validation flight file (optional)")
+    p.add_argument("--out", default="jaxheli-result", help="output folder (result.json, result.npz, PNGs)")
+    p.add_argument("--iterations", type=int, default=1000, help="IWO / GA generations (default 1000, the paper)")
+    p.add_argument("--trials", type=int, default=1, help="independent trials for 95%% intervals (the paper: 10)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.eqx")
+    p.add_argument("--search-precision", choices=("float32", "float64"), default="float32",
+                   help="arithmetic of the IWO / GA population scoring (default float32: fast, checked against float64)")
+    add_sim_options(p)
+    p.set_defaults(func=_cmd_identify)
+    return p
+
+
+def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register ``evaluate`` on the ``jaxheli`` command line."""
+    p = subparsers.add_parser("evaluate", help="score a model on a flight (Pearson, TIC, RMSE, fit %%, paper cost)")
+    p.add_argument("--model", required=True, help="result.json / parameters JSON, or a named set: table2")
+    p.add_argument("--data", default=DEFAULT_DATA, help="flight file (.mat .csv .npz .px4log .bin .ulg) or 'default'")
+    p.add_argument("--x0", choices=("estimate", "zero", "measured"), default="estimate",
+                   help="initial state: least-squares estimate (default, as MATLAB compare), zero (the paper), measured")
+    p.add_argument("--out", default=None, help="write the metrics as JSON here")
+    add_sim_options(p)
+    p.set_defaults(func=_cmd_evaluate)
+    return p
+
+
+def add_synth_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register ``synth`` on the ``jaxheli`` command line."""
+    p = subparsers.add_parser("synth", help="write a piloted synthetic flight (the embedded default unless options change it)")
+    p.add_argument("--out", required=True, help="output file, .csv or .npz")
+    p.add_argument("--duration", type=float, default=None, help="record length, s (default 80)")
+    p.add_argument("--seed", type=int, default=None, help="random seed (default 0)")
+    p.add_argument("--gust", type=float, default=0.0, help="gust standard deviation, m/s (default 0)")
+    p.set_defaults(func=_cmd_synth)
+    return p
+
+
+def _print_metrics(title: str, block: dict) -> None:
+    chans = list(block["pearson"])
+    print(title)
+    print("  channel  " + "".join(f"{c:>9}" for c in chans))
+    for key, label, fmt in (("pearson", "pearson", "9.4f"), ("tic", "TIC", "9.4f"), ("fit_percent", "fit %", "9.1f")):
+        print(f"  {label:<9}" + "".join(f"{block[key][c]:{fmt}}" for c in chans))
+    print(f"  cost (paper Eq. 7): {block['cost']:.6g}")
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from ..evaluate import evaluate
+
+    flight = load_flight(args.data)
+    block = evaluate(args.model, flight, outputs=outputs(args.outputs), x0=args.x0, **sim_options(args))
+    _print_metrics(f"{args.model} on {flight.source} ({flight.n_samples} samples, dt {flight.dt:.4g} s)", block)
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(json.dumps(block, indent=2))
+        print(f"wrote {args.out}")
+    return 0
+
+
+def _cmd_identify(args: argparse.Namespace) -> int:
+    from ..identify import identify
+    from ..results import save_result
+
+    train = load_flight(args.train)
+    validate = None if not args.validate else train if args.validate == args.train else load_flight(args.validate)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    result = identify(
+        train,
+        method=args.method,
+        validate=validate,
+        iterations=args.iterations,
+        trials=args.trials,
+        seed=args.seed,
+        outputs=outputs(args.outputs),
+        checkpoint=str(out / "checkpoint.eqx") if args.method != "pem" else None,
+        resume=args.resume,
+        search_precision=args.search_precision,
+        **sim_options(args),
+    )
+    _print_metrics(f"{args.method} on the training flight {train.source}", result.train)
+    if result.validate is not None:
+        _print_metrics(f"validation flight {validate.source}, initial state estimated", result.validate)
+        _print_metrics("validation flight, from rest (the paper)", result.validate["zero_initial_state"])
+    if result.polish:
+        print(f"polish: cost {result.polish['cost_before']:.6g} -> {result.polish['cost_after']:.6g}")
+    for path in save_result(result, out, train, validate):
+        print(f"wrote {path}")
+    return 0
+
+
+def _cmd_synth(args: argparse.Namespace) -> int:
+    from ..io import save
+    from ..synth.piloted import default_flight, piloted_flight
+
+    if args.duration is None and args.seed is None and args.gust == 0.0:
+        flight = default_flight()
+    else:
+        flight = piloted_flight(duration=args.duration or 80.0, seed=args.seed or 0, gust=args.gust)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    save(flight, out)
+    print(f"{flight!r}\nwrote {out}")
+    return 0
