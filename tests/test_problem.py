@@ -20,7 +20,7 @@ OUTPUTS = ("u", "v", "p", "q", "phi", "theta", "w", "r")
 
 @pytest.fixture(scope="module")
 def flight() -> FlightData:
-    return piloted_flight(duration=20.0, dt=0.05, seed=3)
+    return piloted_flight(duration=30.0, dt=0.05, seed=3)
 
 
 @pytest.fixture(scope="module")

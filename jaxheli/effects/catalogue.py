@@ -12,17 +12,12 @@ so effects that are absent cost nothing in accuracy.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
-
 import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, Float
 from ..model import INPUT_NAMES, N_INPUTS, STATE_NAMES
-from .record import Dice, Draw, Effect, Group, Param, Registry, Term
-
-if TYPE_CHECKING:
-    from .plant import Plant
+from .record import Dice, Draw, Effect, Group, Param, PlantView, Registry, Term
 
 GYROS: tuple[str, ...] = ("p", "q", "r")
 """Output channels a scale-factor error acts on (gyros)."""
@@ -49,11 +44,11 @@ def _per_axis(name: str, group: str, eta_order: int, unit: str, start: float, bo
     return Effect(name, (Group(group, N_INPUTS),), eta_order, params, (term,), inject)
 
 
-def _delay_history(plant: Plant) -> Float[Array, "D 4"]:
+def _delay_history(plant: PlantView) -> Float[Array, "D 4"]:
     return jnp.zeros((plant.max_delay + 2, N_INPUTS))
 
 
-def _delay(plant: Plant, history: Float[Array, "D 4"], sticks: Float[Array, "4"], servo: Float[Array, "4"]
+def _delay(plant: PlantView, history: Float[Array, "D 4"], sticks: Float[Array, "4"], servo: Float[Array, "4"]
            ) -> tuple[Float[Array, "D 4"], Float[Array, "4"]]:
     """Transport delay of ``|delay|`` s: linear interpolation of the held sticks (``history``, newest first)."""
     history = jnp.concatenate([sticks[None, :], history[:-1]], axis=0)
@@ -70,7 +65,7 @@ INPUT_DELAY = _per_axis("input_delay", "delay", eta_order=0, unit="s", start=0.0
 Injected: 40-120 ms on one random axis."""
 
 
-def _lag(plant: Plant, state: None, sticks: Float[Array, "4"], servo: Float[Array, "4"]
+def _lag(plant: PlantView, state: None, sticks: Float[Array, "4"], servo: Float[Array, "4"]
          ) -> tuple[None, Float[Array, "4"]]:
     """Servo lag of time constant ``|lag|`` s, backward Euler from the servo position ``servo``."""
     tau = jnp.abs(plant.group("lag"))
@@ -91,11 +86,11 @@ def _channel_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> 
     return bias + drift
 
 
-def _offset(plant: Plant, y: Float[Array, "k"], t: Float[Array, ""]) -> Float[Array, "k"]:
+def _offset(plant: PlantView, y: Float[Array, "k"], t: Float[Array, ""]) -> Float[Array, "k"]:
     return y + plant.group("bias") + plant.group("drift") * t
 
 
-def _remove_offset(plant: Plant, y: Float[Array, "N k"], t: Float[Array, "N"]) -> Float[Array, "N k"]:
+def _remove_offset(plant: PlantView, y: Float[Array, "N k"], t: Float[Array, "N"]) -> Float[Array, "N k"]:
     return y - plant.group("bias")[None, :] - t[:, None] * plant.group("drift")[None, :]
 
 
@@ -152,7 +147,7 @@ def _drag_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tup
             Param(at("drag", 1), "Yvv", "1/m", "v", 0.0, False, 10.0))
 
 
-def _drag(plant: Plant, state: None, x: Float[Array, "13"], applied: Float[Array, "4"]
+def _drag(plant: PlantView, state: None, x: Float[Array, "13"], applied: Float[Array, "4"]
           ) -> tuple[None, Float[Array, "13"]]:
     """``Xuu u|u|`` and ``Yvv v|v|`` on the speed derivatives."""
     xuu, yvv = plant.group("drag")
@@ -176,7 +171,7 @@ QUADRATIC_DRAG = Effect(
 """Quadratic drag on u and v (1/m, plausible up to 10). Injected: 1-3 1/m on both."""
 
 
-def _saturate(plant: Plant, state: None, sticks: Float[Array, "4"], servo: Float[Array, "4"]
+def _saturate(plant: PlantView, state: None, sticks: Float[Array, "4"], servo: Float[Array, "4"]
               ) -> tuple[None, Float[Array, "4"]]:
     """``u / sqrt(1 + k u^2)``: a smooth limit at ``1 / sqrt(k)`` stick, ``k = |sat|``."""
     return state, sticks / jnp.sqrt(1.0 + jnp.abs(plant.group("sat")) * sticks**2)
@@ -194,11 +189,11 @@ def _rotor_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tu
             Param(at("rotor", 1), "rotor_tau", "s", "col->r", 0.5, True, 3.0, shape=True))
 
 
-def _rotor_speed(plant: Plant) -> Float[Array, ""]:
+def _rotor_speed(plant: PlantView) -> Float[Array, ""]:
     return jnp.zeros(())
 
 
-def _rotor(plant: Plant, rotor: Float[Array, ""], x: Float[Array, "13"], applied: Float[Array, "4"]
+def _rotor(plant: PlantView, rotor: Float[Array, ""], x: Float[Array, "13"], applied: Float[Array, "4"]
            ) -> tuple[Float[Array, ""], Float[Array, "13"]]:
     """Rotor-speed state, a backward-Euler lag of the collective, driving the yaw acceleration."""
     gain, tau = plant.group("rotor")
@@ -230,7 +225,7 @@ def _misalignment_params(outputs: tuple[str, ...], at: Callable[[str, int], int]
               if c in outputs))
 
 
-def _sensor_matrix(plant: Plant) -> Float[Array, "k k"]:
+def _sensor_matrix(plant: PlantView) -> Float[Array, "k k"]:
     """``M``: scale factors on p, q, r, then a yaw rotation of the (u, v), (p, q), (phi, theta) pairs."""
     eps, *scale = plant.group("mis")
     outputs = plant.outputs
@@ -248,11 +243,11 @@ def _sensor_matrix(plant: Plant) -> Float[Array, "k k"]:
     return R * diag[None, :]
 
 
-def _mount(plant: Plant, y: Float[Array, "k"], t: Float[Array, ""]) -> Float[Array, "k"]:
+def _mount(plant: PlantView, y: Float[Array, "k"], t: Float[Array, ""]) -> Float[Array, "k"]:
     return _sensor_matrix(plant) @ y
 
 
-def _unmount(plant: Plant, y: Float[Array, "N k"], t: Float[Array, "N"]) -> Float[Array, "N k"]:
+def _unmount(plant: PlantView, y: Float[Array, "N k"], t: Float[Array, "N"]) -> Float[Array, "N k"]:
     return jnp.linalg.solve(_sensor_matrix(plant), y.T).T
 
 

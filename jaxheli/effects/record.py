@@ -11,12 +11,24 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
-from .._types import Float
+from .._types import Array, Float
 from ..model import N_INPUTS
+
+
+class PlantView(Protocol):
+    """What a plant term reads of the augmented plant (:class:`~jaxheli.effects.plant.Plant` provides it)."""
+
+    dt: float
+    outputs: tuple[str, ...]
+    max_delay: int
+
+    def group(self, name: str) -> Array:
+        """The ``eta`` entries of one layout group."""
+        ...
 
 STAGES: tuple[str, ...] = ("command", "servo", "airframe", "mounting", "reading")
 """Where a plant term acts, in signal order; terms of one stage act in registry order.
