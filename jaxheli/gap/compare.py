@@ -9,12 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data.flight import default_outputs
-from ..evaluate import resolve_params
-from ..data.flight import FlightData
-from ..sim.initial_state import estimate_x0
+from ..data.flight import FlightData, default_outputs
+from ..evaluate import resolve_params, started_simulator
 from ..model import G_SI, INPUT_NAMES
-from ..sim.simulate import make_simulator
+from ..problem import make_problem
 from .frequency import FrequencyResponse, estimate_frequency_response, mismatch, model_frequency_response
 from .localise import localise
 
@@ -40,16 +38,15 @@ def localise_model(
 ) -> tuple[dict[str, object], np.ndarray]:
     """Simulate ``params`` (anything :func:`jaxheli.resolve_params` takes) on ``flight`` and localise the gap.
 
-    ``x0`` as in :func:`jaxheli.evaluate`; ``sim_options`` go to :func:`jaxheli.make_simulator`. Returns the
+    ``x0`` as in :func:`jaxheli.evaluate`; ``sim_options`` are :class:`~jaxheli.problem.Settings` fields
+    (``hold``, ``g``, ``segment``). Returns the
     JSON report (:func:`localise`'s keys plus ``frequency_response``: per ``input->output`` pair the
     coherent bins, mean magnitude (dB) and phase (deg) errors and CIFER cost from :func:`mismatch`, and
     ``simulation``) and the simulated outputs ``[N, k]``.
     """
     theta = resolve_params(params)
     names = tuple(outputs) if outputs is not None else default_outputs(flight)
-    estimate = isinstance(x0, str) and x0 == "estimate"
-    x0_used = estimate_x0(theta, flight, outputs=names, **sim_options) if estimate else x0
-    sim = make_simulator(flight, outputs=names, x0=x0_used, **sim_options)
+    sim = started_simulator(make_problem(flight, outputs=names, **sim_options), theta, x0)
     simulated = np.asarray(sim(theta))
     settings = sim.describe()
     settings["initial_state"] = x0 if isinstance(x0, str) else "given"
