@@ -234,7 +234,21 @@ def block_outputs(ops: Operators, X: Float[Array, "J n P"], U: Float[Array, "J n
     return forced + free
 
 
-def blocked_rollout(
+class Blocks(NamedTuple):
+    """One population's blocked run: operators, stacked inputs, block-start states ``X`` and the state after
+    the last whole block; what the rollout and the Pearson sums both start from."""
+
+    ops: Operators
+    U: Float[Array, "J nu_m"]
+    u: Float[Array, "N m"]
+    x0: Float[Array, "n P"]
+    X: Float[Array, "J n P"]
+    last: Float[Array, "n P"]
+    idx: np.ndarray
+    plan: Plan
+
+
+def run_blocks(
     d: Discrete,
     u: Float[Array, "N m"],
     x0: Float[Array, "n P"],
@@ -243,16 +257,20 @@ def blocked_rollout(
     keep_unmeasured: bool,
     idx: np.ndarray,
     plan: Plan,
-) -> Float[Array, "P N k"]:
-    """Simulated outputs ``[P, N, k]``, equal to the step-by-step scan up to rounding."""
+) -> Blocks:
+    """The states at every block start of a population (restarts included) and the operators behind them."""
     ops = operators(d, plan, idx)
     U = block_inputs(u, plan)
     X, last = block_states(
         ops, U, initial_shifted(ops, x0, u, plan), u, measured_states, mask, keep_unmeasured, plan
     )
-    P = x0.shape[1]
-    k = len(idx)
-    first = jnp.transpose(x0[idx])[:, None, :]  # [P, 1, k]
-    body = block_outputs(ops, X, U, plan).reshape(P, plan.n_blocks * plan.block, k)
-    tail = jnp.transpose(tail_outputs(ops, last, u, plan), (2, 0, 1))
+    return Blocks(ops, U, u, x0, X, last, idx, plan)
+
+
+def blocked_rollout(b: Blocks) -> Float[Array, "P N k"]:
+    """Simulated outputs ``[P, N, k]`` of a blocked run, equal to the step-by-step scan up to rounding."""
+    P, k = b.x0.shape[1], len(b.idx)
+    first = jnp.transpose(b.x0[b.idx])[:, None, :]  # [P, 1, k]
+    body = block_outputs(b.ops, b.X, b.U, b.plan).reshape(P, b.plan.n_blocks * b.plan.block, k)
+    tail = jnp.transpose(tail_outputs(b.ops, b.last, b.u, b.plan), (2, 0, 1))
     return jnp.concatenate([first, body, tail], axis=1)

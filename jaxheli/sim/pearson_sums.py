@@ -26,27 +26,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, Float
-from .blocked import Operators, Plan, block_inputs, block_states, initial_shifted, operators
-from .blocked import population_discrete, tail_outputs
+from .blocked import Operators, Plan, tail_outputs
 from ..cost import flat_from_sums, pearson_from_sums
-from ..model import output_indices
 from .population_linalg import pmatmul
 
 
 def blocked_pearson(sim, thetas: Float[Array, "P 40"], target: Float[Array, "N k"]) -> Float[Array, "P k"]:
     """Pearson's rho per candidate and channel, ``[P, k]``, of a blocked :class:`~jaxheli.Simulator`."""
-    d = population_discrete(thetas, sim.g, sim.dt, sim.hold)
-    dtype = d.Ad.dtype
-    plan = sim.plan()
-    idx = output_indices(sim.outputs)
-    u = sim.inputs.astype(dtype)
-    ops = operators(d, plan, idx)
-    U = block_inputs(u, plan)
-    x0 = sim.initial_states(thetas.shape[0], dtype)
-    meas = sim.measured_states.astype(dtype)
-    mask = np.asarray(sim.measured_mask)
-    X, last = block_states(ops, U, initial_shifted(ops, x0, u, plan), u, meas, mask, sim.reset == "carry", plan)
-    target = jnp.asarray(target, dtype)
+    ops, U, u, x0, X, last, idx, plan = sim.blocks(thetas)
+    target = jnp.asarray(target, X.dtype)
     mc = target - jnp.mean(target, axis=0, keepdims=True)
     m_spread = jnp.sum(mc**2, axis=0)
     m_spread = eqx.error_if(m_spread, m_spread <= 0, "pearson: a measured channel is constant")

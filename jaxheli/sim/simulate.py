@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, Float, Params
-from .blocked import Plan, blocked_rollout, choose_block, make_plan, population_discrete
+from .blocked import Blocks, Plan, blocked_rollout, choose_block, make_plan, population_discrete, run_blocks
 from .discretize import Hold, discretize
 from ..data.flight import FlightData
 from ..model import FLAPPING, G_SI, MEASURABLE, N_STATES, build_ab, output_indices
@@ -59,9 +59,11 @@ class Simulator(eqx.Module):
         y = _blocked_outputs(self, flat) if self.method == "blocked" else jax.vmap(self._one)(flat)
         return y.reshape(batch + y.shape[1:])
 
-    def _blocked(self, thetas: Float[Array, "P 40"]) -> Float[Array, "P N k"]:
+    def blocks(self, thetas: Float[Array, "P 40"]) -> Blocks:
+        """The blocked run of a population (blocked method only): what the rollout and the Pearson sums
+        (:mod:`jaxheli.sim.pearson_sums`) both start from."""
         d = population_discrete(thetas, self.g, self.dt, self.hold)
-        return blocked_rollout(
+        return run_blocks(
             d,
             self.inputs.astype(d.Ad.dtype),
             self.initial_states(thetas.shape[0], d.Ad.dtype),
@@ -249,7 +251,7 @@ def make_simulator(
 
 @eqx.filter_jit
 def _blocked_outputs(sim: Simulator, thetas: Array) -> Array:
-    return sim._blocked(thetas)  # jitted even when called eagerly: the blocked path is many small ops
+    return blocked_rollout(sim.blocks(thetas))  # jitted even when called eagerly: the blocked path is many small ops
 
 
 @eqx.filter_jit
