@@ -113,12 +113,14 @@ class Problem(eqx.Module):
     """One record under fixed :class:`Settings`: simulator, target ``[N, k]``, channel scales and bounds.
 
     Build it with :func:`make_problem`. ``scale`` is each measured channel's standard deviation (the
-    normalisation of PEM's residuals and of the output-error metrics).
+    normalisation of PEM's residuals and of the output-error metrics), ``time`` the sample times from the
+    record's start, s.
     """
 
     sim: Simulator
     target: Float[Array, "N k"]
     scale: Float[Array, "k"]
+    time: Float[Array, "N"]
     bounds: Bounds
     settings: Settings = eqx.field(static=True)
     source: Source = eqx.field(static=True)
@@ -169,8 +171,8 @@ def make_problem(flight: FlightData, settings: Settings | None = None, **changes
     sim = make_simulator(flight, outputs=names, g=settings.g, hold=settings.hold, x0=settings.x0,
                          segment=settings.segment, method=settings.simulator)
     target = flight.select(names).outputs
-    return Problem(sim, jnp.asarray(target), jnp.asarray(target.std(axis=0)), settings.bounds, settings,
-                   Source(flight.source))
+    return Problem(sim, jnp.asarray(target), jnp.asarray(target.std(axis=0)), jnp.asarray(flight.time - flight.time[0]),
+                   settings.bounds, settings, Source(flight.source))
 
 
 def as_problem(data: FlightData | Problem, defaults: dict[str, Any] | None = None, **settings: Any) -> Problem:

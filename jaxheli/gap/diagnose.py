@@ -27,6 +27,7 @@ from .._types import Array, Float
 from ..cost import nmse
 from ..evaluate import resolve_params
 from ..data.flight import FlightData
+from ..problem import make_problem
 from ..model import G_SI, MEASURABLE
 from ..effects import registry as fx
 from ..effects.plant import no_effect
@@ -128,7 +129,8 @@ def diagnose(
     train, validate = train.select(names), validate.select(names)
     consistency = [{**f.to_json(), "flight": role} for role, flight in (("train", train), ("validate", validate))
                    for f in check(flight)]
-    preds = predictor_pair(theta, train, validate, segment=segment, g=g, track=options.pop("track", None))
+    problems = [make_problem(f, outputs=names, g=g) for f in (train, validate)]
+    preds = predictor_pair(theta, *problems, segment=segment, g=g, track=options.pop("track", None))
     ranked = diagnose_effects(theta, *preds, list(effects), top=top, **options)
     localisation = _localise_base(theta, validate, preds[1], segment)
     if localise_train:

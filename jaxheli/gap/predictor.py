@@ -23,7 +23,8 @@ import numpy as np
 from .._types import Array, Float
 from ..cost import nmse
 from ..data.flight import FlightData
-from ..model import G_SI, N_STATES, output_indices
+from ..problem import Problem
+from ..model import FLAPPING, G_SI, N_STATES, output_indices
 from ..effects.plant import GUST_STATES, make_plant, no_effect
 from .kalman import gust_filter
 
@@ -108,37 +109,45 @@ def noise_variance(outputs: Float[np.ndarray, "N k"]) -> Float[np.ndarray, "k"]:
 
 
 def make_predictor(
-    flight: FlightData, *, segment: float = 2.0, g: float = G_SI, max_delay: float = 0.3, window: float = 0.5,
-    track: float = TRACK,
+    data: FlightData | Problem, *, segment: float = 2.0, g: float = G_SI, max_delay: float = 0.3,
+    window: float = 0.5, track: float = TRACK,
 ) -> Predictor:
-    """Predictor of ``flight`` (all its output channels) restarting every ``segment`` s from the filtered
-    state (process noise ``track``, see :data:`TRACK`); delays up to ``max_delay`` s; residual energy in
-    windows of ``window`` s (:meth:`Predictor.segment_energy`)."""
-    bad = [c for c in flight.output_names if c in ("a", "b")]
+    """Predictor of a record restarting every ``segment`` s from the filtered state (process noise ``track``,
+    see :data:`TRACK`); delays up to ``max_delay`` s; residual energy in windows of ``window`` s
+    (:meth:`Predictor.segment_energy`). ``data`` is a flight (all its output channels, gravity ``g``) or a
+    :class:`~jaxheli.problem.Problem` (its scored channels and its ``g``)."""
+    if isinstance(data, Problem):
+        source, names, dt, g = str(data.source), data.outputs, data.dt, data.settings.g
+        inputs, outputs, time = (np.asarray(v) for v in (data.sim.inputs, data.target, data.time))
+    else:
+        source, names, dt = data.source, tuple(data.output_names), data.dt
+        inputs, outputs, time = data.inputs, data.outputs, data.time - data.time[0]
+    n = outputs.shape[0]
+    bad = [c for c in names if c in FLAPPING]
     if bad:
-        raise ValueError(f"{flight.source}: output channels {bad} are stick multiples, not states; drop them")
-    seg = int(round(segment / flight.dt))
-    if seg < 2 or seg >= flight.n_samples:
-        raise ValueError(f"{flight.source}: segment {segment} s must span 2 samples to the record length")
+        raise ValueError(f"{source}: output channels {bad} are stick multiples, not states; drop them")
+    seg = int(round(segment / dt))
+    if seg < 2 or seg >= n:
+        raise ValueError(f"{source}: segment {segment} s must span 2 samples to the record length")
     if not track >= 0:
-        raise ValueError(f"{flight.source}: restart filter track {track} must be >= 0")
-    win = int(round(window / flight.dt))
-    if win < 1 or win >= flight.n_samples:
-        raise ValueError(f"{flight.source}: significance window {window} s must span 1 sample to the record length")
-    std = flight.outputs.std(axis=0)
-    flat = [c for c, s in zip(flight.output_names, std) if not s > 0]
+        raise ValueError(f"{source}: restart filter track {track} must be >= 0")
+    win = int(round(window / dt))
+    if win < 1 or win >= n:
+        raise ValueError(f"{source}: significance window {window} s must span 1 sample to the record length")
+    std = outputs.std(axis=0)
+    flat = [c for c, s in zip(names, std) if not s > 0]
     if flat:
-        raise ValueError(f"{flight.source}: measured channel(s) {flat} are constant; drop them")
+        raise ValueError(f"{source}: measured channel(s) {flat} are constant; drop them")
     return Predictor(
-        inputs=jnp.asarray(flight.inputs),
-        measured=jnp.asarray(flight.outputs),
-        time=jnp.asarray(flight.time - flight.time[0]),
-        noise_var=jnp.asarray(noise_variance(flight.outputs)),
+        inputs=jnp.asarray(inputs),
+        measured=jnp.asarray(outputs),
+        time=jnp.asarray(time),
+        noise_var=jnp.asarray(noise_variance(outputs)),
         scale=jnp.asarray(std),
-        dt=flight.dt,
+        dt=dt,
         segment_samples=seg,
         window_samples=win,
-        outputs=tuple(flight.output_names),
+        outputs=names,
         g=float(g),
         max_delay=float(max_delay),
         track=jnp.asarray(float(track)),

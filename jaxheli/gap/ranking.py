@@ -29,6 +29,7 @@ import scipy.stats
 
 from .._types import ArrayLike, Float
 from ..data.flight import FlightData
+from ..problem import Problem
 from ..model import G_SI
 from ..effects import registry as fx
 from ..effects.plant import no_effect
@@ -190,17 +191,18 @@ def verdict(ranking: list[dict[str, Any]]) -> str:
 
 
 def predictor_pair(
-    theta: Float[ArrayLike, "40"], train: FlightData | Predictor, validate: FlightData | Predictor, *,
+    theta: Float[ArrayLike, "40"], train: FlightData | Problem | Predictor, validate: FlightData | Problem | Predictor, *,
     segment: float = 2.0, g: float = G_SI, track: float | None = None,
 ) -> tuple[Predictor, Predictor]:
-    """The predictors of the training and validation flights, built once each (predictors are taken as
-    they are): restarts every ``segment`` s, the restart filter at ``track`` (``None``: the level
+    """The predictors of the training and validation records (flights or problems), built once each
+    (predictors are taken as they are): restarts every ``segment`` s, the restart filter at ``track`` (``None``: the level
     :func:`~jaxheli.gap.predictor.tune_track` picks for ``theta`` on ``train``)."""
     if isinstance(train, Predictor) and isinstance(validate, Predictor):
         return train, validate
-    if train.output_names != validate.output_names:
-        raise ValueError(f"{validate.source}: output channels {validate.output_names} differ from the training "
-                         f"flight's {train.output_names} ({train.source})")
+    names = [x.outputs if isinstance(x, Problem) else x.output_names for x in (train, validate)]
+    if names[0] != names[1]:
+        raise ValueError(f"{validate.source}: output channels {names[1]} differ from the training "
+                         f"flight's {names[0]} ({train.source})")
     train_pred = make_predictor(train, segment=segment, g=g)
     level = tune_track(train_pred, theta) if track is None else float(track)
     train_pred = dataclasses.replace(train_pred, track=jnp.asarray(level))
