@@ -45,8 +45,11 @@ STAGES: tuple[str, ...] = ("command", "servo", "airframe", "mounting", "reading"
 """
 
 STICK: tuple[str, ...] = ("command", "servo")
+"""Stages of :meth:`~jaxheli.effects.plant.Plant.actuate`."""
 AIRFRAME: tuple[str, ...] = ("airframe",)
+"""Stage of :meth:`~jaxheli.effects.plant.Plant.advance`."""
 SENSOR: tuple[str, ...] = ("mounting", "reading")
+"""Stages of :meth:`~jaxheli.effects.plant.Plant.measure` (and, reversed, of ``unmeasure``)."""
 
 
 @dataclasses.dataclass(frozen=True)
