@@ -42,7 +42,9 @@ from .model import (
 from .optim import GA as GA, IWO as IWO, minimize as minimize, minimize_trials as minimize_trials
 from .distributed import minimize_trials_distributed as minimize_trials_distributed
 from .optim import pem as pem, polish as polish, standard_errors as standard_errors
-from .sim.population import population_cost as population_cost
+from .sim.population import PopulationCost as PopulationCost, population_cost as population_cost
+from .bounds import Bounds as Bounds
+from .problem import Problem as Problem, Settings as Settings, make_problem as make_problem
 from .data.preprocess import detrend as detrend, from_samples as from_samples, lowpass as lowpass
 from .data.preprocess import resample as resample, split as split, trim as trim
 from .report import build_report as build_report, write_report as write_report
