@@ -41,6 +41,7 @@ from jaxtyping import Float
 from ..data.flight import FlightData, FlightDataError
 from ..model import G_SI, INPUT_NAMES
 from ..data.preprocess import _step
+from ._lag import fit_lag
 from ._regress import Fit, hac_lstsq, well_posed
 
 N_SIGMA = 3.0
@@ -230,28 +231,18 @@ def _fit_axis(
     t: Float[np.ndarray, "N"], angle: np.ndarray, rate: np.ndarray, c: np.ndarray, e: np.ndarray, dt: float,
     cutoff: float,
 ) -> tuple[dict[str, float], dict[str, float], bool] | None:
-    """Gauss-Newton on the lag, least squares for the rest: ``angle' = s (c rate(t + tau) + e - c b - c d t')``."""
-    target = np.gradient(angle, dt)
-    keep = _interior(t, EDGE_S + MAX_LAG_S)
+    """Lag by :func:`~._lag.fit_lag`, least squares for the rest: ``angle' = s (c rate(t + tau) + e - c b - c d t')``."""
     tc = t - 0.5 * (t[0] + t[-1])
-    tau, converged, fit = 0.0, False, None
-    for _ in range(12):
-        shifted = np.interp(t + tau, t, rate)
-        X = np.stack([c * shifted + e, c * np.gradient(shifted, dt), c, c * tc], axis=1)[keep]
-        if not well_posed(X):
-            return None
-        fit = hac_lstsq(target[keep], X, min_bandwidth=int(1.0 / (cutoff * dt)))
-        step = fit.beta[1] / fit.beta[0]
-        tau = float(np.clip(tau + step, -MAX_LAG_S, MAX_LAG_S))
-        if abs(step) < 1e-3 * dt:
-            converged = True
-            break
-    s, sig_s = fit.beta[0], fit.se[0]
+    lag = fit_lag(t, np.gradient(angle, dt), rate, [c, c * tc], max_lag=MAX_LAG_S, edge=EDGE_S,
+                  bandwidth=int(1.0 / (cutoff * dt)), weight=c, offset=e)
+    if lag is None:
+        return None
+    fit = lag.fit
     b, sig_b = _ratio(fit, 2, -1.0)
     d, sig_d = _ratio(fit, 3, -1.0)
-    values = {"s": float(s), "tau": tau, "b": b, "d": d}
-    sigmas = {"s": float(sig_s), "tau": float(fit.se[1] / abs(s)), "b": sig_b, "d": sig_d}
-    return values, sigmas, converged and abs(tau) < MAX_LAG_S
+    values = {"s": float(fit.beta[0]), "tau": lag.tau, "b": b, "d": d}
+    sigmas = {"s": float(fit.se[0]), "tau": lag.sigma, "b": sig_b, "d": sig_d}
+    return values, sigmas, lag.converged
 
 
 def _axis_findings(fits: list[_AxisFit], flight: FlightData) -> list[Finding]:
