@@ -1,14 +1,14 @@
 """Is the flight data itself consistent? Flight-test data compatibility checks before blaming the model.
 
-Three stages, each run on the record corrected by the stages before it (as :func:`correct` applies them):
+Five stages, each run on the record corrected by the stages before it (as :func:`correct` applies them):
 
 1. **Kinematics** (angles against body rates, per axis roll and pitch). The full Euler relations
    ``phi' = p + (q sin phi + r cos phi) tan theta`` and ``theta' = q cos phi - r sin phi`` are fitted as
    ``angle' = s (c rate(t + tau) + e - c b - c d (t - t_mid))`` on low-passed signals, with ``c`` the
    rate's coefficient and ``e`` the cross-axis terms. Estimates: the time-scale factor ``k = 1 / s``
    (recorded time / true time; all axes agree when the time base is off, one axis alone means a gyro
-   scale error), the lag ``tau`` (s, > 0 when the rate channel lags the angle; sub-sample, Gauss-Newton
-   on a fractional shift), the rate bias ``b`` (rad/s) and its drift ``d`` (rad/s^2).
+   scale error), the lag ``tau`` (s, > 0 when the rate channel lags the angle; :func:`~._lag.fit_lag`:
+   a whole-sample grid, a parabola, then Gauss-Newton on a fractional shift), the rate bias ``b`` (rad/s) and its drift ``d`` (rad/s^2).
 2. **Velocity frame** (velocities against attitude): near hover ``u' = -g theta + ...`` and
    ``v' = g phi + ...``. Each velocity derivative is regressed on the attitude angles, the velocities
    (speed derivatives), the body rates and the centred sticks (rotor flapping, quasi-steady), a constant
@@ -17,12 +17,20 @@ Three stages, each run on the record corrected by the stages before it (as :func
 3. **Attitude bias and drift** from the same regression's constant and time terms: the roll / pitch
    offset (rad) at which the helicopter would not accelerate, and its drift (rad/s). A velocity drift
    looks the same (``g`` times the offset, m/s^2); the two cannot be told apart from these channels.
+4. **Velocity lags**: each body velocity ``u, v, w`` against its kinematic acceleration, gravity and the
+   rate cross terms of ``V' = F/m - omega x V + g`` (``u' = r v - q w - g sin theta + X``, ...), with a
+   scale, a drag term, the collective for ``w``, a constant and time standing in for the unmeasured force.
+   The lag includes the rotor's own lag behind the fuselage (its flapping time constant) where the force
+   model misses it, and ``w``'s is weak unless the attitude varies: its uncertainty says so.
+5. **Velocity bias and drift** against the plausible net displacement of the record
+   (:data:`MAX_TRAVEL_M`): the integrated velocity of a hover test stays within metres.
 
 Every estimate carries a **1-sigma** uncertainty: Newey-West (autocorrelation-consistent) regression
 standard errors, propagated to ratios by the delta method. A finding is ``significant`` when it differs
 from its nominal value by more than ``3 sigma`` *and* by more than a practical tolerance
-(:data:`TOLERANCE`), so long records do not flag harmless deviations. Yaw is not checked: the measurable
-channels carry no heading angle.
+(:data:`TOLERANCE`), so long records do not flag harmless deviations. Every lag is reported; it is
+significant beyond :data:`LAG_SIGMA` sigma and at least one sample. The yaw rate's pair is reported as
+``not_checked``: the measurable channels carry no heading angle.
 """
 
 from __future__ import annotations
@@ -48,10 +56,10 @@ N_SIGMA = 3.0
 """Significance: estimate further than this many standard deviations from its nominal value..."""
 
 TOLERANCE: dict[str, float] = {
-    "time_scale": 0.02, "rate_scale": 0.03, "kinematic_lag": 0.010, "rate_bias": 0.005, "rate_drift": 0.005,
+    "time_scale": 0.02, "rate_scale": 0.03, "rate_bias": 0.005, "rate_drift": 0.005,
     "velocity_rotation": math.radians(3.0), "velocity_scale": 0.25, "attitude_bias": 0.01, "attitude_drift": 0.01,
 }
-"""...and further than this: scale factors (fraction), lag s, rate bias rad/s, velocity rotation rad,
+"""...and further than this: scale factors (fraction), rate bias rad/s, velocity rotation rad,
 attitude bias rad. Drifts are judged by the change they make over the record (rad/s, rad)."""
 
 KINEMATIC_CUTOFF_HZ = 5.0
@@ -70,13 +78,23 @@ MAX_LAG_S = 0.4
 MIN_DURATION_S = 2.0
 """Shortest record (after the edges) a check runs on, s."""
 
+LAG_SIGMA = 2.0
+"""A lag (rate or velocity channel) is significant beyond this many sigma and at least one sample."""
+
+MAX_TRAVEL_M = 10.0
+"""Plausible net displacement of a hover record, m: a pilot holding station ends within a few metres of the
+start (or of the take-off point), so integrated velocity beyond 10 m is not a hover test but a biased or
+drifting velocity channel. Records of translating flight need a larger bound (``check(max_travel=...)``)."""
+
 _ORDER = ("time_scale", "rate_scale", "kinematic_lag", "rate_bias", "rate_drift", "velocity_frame", "velocity_scale",
-          "attitude_bias", "attitude_drift")
+          "attitude_bias", "attitude_drift", "velocity_lag")
 """The order in which :func:`correct` applies findings (the stage order of :func:`check`)."""
 
 _AXES = (("roll", "phi", "p"), ("pitch", "theta", "q"))
 _VELOCITIES = (("u", "theta", -1.0), ("v", "phi", 1.0))
 """Velocity, its attitude partner and the sign of ``g`` in ``velocity' = sign g angle``."""
+_SPEEDS = (("u", ("theta",)), ("v", ("phi",)), ("w", ("phi", "theta")))
+"""Body velocity and the Euler angles its gravity component needs."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,8 +120,9 @@ class Finding:
                 "message": self.message}
 
 
-def check(flight: FlightData) -> list[Finding]:
-    """Data-compatibility findings of ``flight`` (kinematics, velocity frame, attitude bias), in stage order.
+def check(flight: FlightData, max_travel: float = MAX_TRAVEL_M) -> list[Finding]:
+    """Data-compatibility findings of ``flight`` (kinematics, velocity frame, attitude bias, velocity lags,
+    velocity bias and drift against ``max_travel`` m of net displacement), in stage order.
 
     Checks whose channels are missing, constant or too short are reported as ``not_checked`` findings.
     """
@@ -115,9 +134,14 @@ def check(flight: FlightData) -> list[Finding]:
     if findings[0].significant:
         fits = _kinematic_fits(current)
     findings += _axis_findings(fits, current)
+    if "r" in flight.output_names:
+        findings.append(_skip(("r", "psi"), "r against dpsi/dt not checked: the flight carries no heading angle."))
     current = correct(flight, findings)
     findings += _velocity_frame(current)
     findings += _attitude_bias(correct(flight, findings))
+    current = correct(flight, findings)
+    findings += _velocity_lags(current)
+    findings += _travel(current, max_travel)
     return findings
 
 
@@ -125,7 +149,7 @@ def correct(flight: FlightData, findings: list[Finding]) -> FlightData:
     """Apply the significant findings to ``flight`` and log them in ``metadata["preprocessing"]``.
 
     Order (:data:`_ORDER`, that of :func:`check`): time base, gyro scale, rate lag, rate bias and drift,
-    velocity frame or scale, attitude bias and drift. Velocity scales are undone in sign always and in
+    velocity frame or scale, attitude bias and drift, velocity lag (the velocity channel advanced). Velocity scales are undone in sign always and in
     magnitude only where significant.
     """
     time, outputs = flight.time.copy(), flight.outputs.copy()
@@ -146,7 +170,7 @@ def correct(flight: FlightData, findings: list[Finding]) -> FlightData:
             outputs[:, col(f.channels[0])] /= est
         elif kind == "velocity_scale":
             outputs[:, col(f.channels[0])] /= _applied_scale(est, f.uncertainty)
-        elif kind == "kinematic_lag":
+        elif kind in ("kinematic_lag", "velocity_lag"):
             c = col(f.channels[0])
             outputs[:, c] = np.interp(time + est, time, outputs[:, c])
         elif kind in ("rate_bias", "attitude_bias"):
@@ -256,7 +280,7 @@ def _axis_findings(fits: list[_AxisFit], flight: FlightData) -> list[Finding]:
         out.append(Finding("rate_scale", (f.rate,), g_scale, sig_g, _beyond(g_scale - 1, sig_g, "rate_scale"),
                            f"{f.rate} reads {g_scale:.4f} +- {sig_g:.4f} (1 sigma) times the rate implied by "
                            f"d{f.angle}/dt."))
-        lag_ok = f.converged and _beyond(v["tau"], sg["tau"], "kinematic_lag")
+        lag_ok = f.converged and _lag_beyond(v["tau"], sg["tau"], flight.dt)
         out.append(Finding("kinematic_lag", (f.rate, f.angle), v["tau"], sg["tau"], lag_ok,
                            f"{f.rate} lags {f.angle} by {1e3 * v['tau']:.1f} +- {1e3 * sg['tau']:.1f} ms (1 sigma)"
                            + ("." if f.converged else "; the lag search did not converge.")))
@@ -381,6 +405,81 @@ def _attitude_bias(flight: FlightData) -> list[Finding]:
     return out
 
 
+# ---- stages 4 and 5: velocity lags against the attitude-driven acceleration; velocity bias and drift ----------
+
+
+def _velocity_lags(flight: FlightData) -> list[Finding]:
+    """Lag of each body velocity against its kinematic acceleration (:func:`_speed_terms`), by
+    :func:`~._lag.fit_lag` with a scale, a drag term (the velocity itself), the collective for ``w``, a
+    constant and time as nuisance; > 0 when the velocity channel lags."""
+    names = flight.output_names
+    fs = 1.0 / flight.dt
+    cutoff = min(VELOCITY_CUTOFF_HZ, 0.4 * fs)
+    y = _lowpass(flight.outputs, cutoff, fs)
+    sig = {n: y[:, i] for i, n in enumerate(names)}
+    col = _lowpass(flight.inputs[:, INPUT_NAMES.index("col")] - flight.inputs[:, INPUT_NAMES.index("col")].mean(),
+                   cutoff, fs)
+    tc = flight.time - 0.5 * (flight.time[0] + flight.time[-1])
+    g = float(flight.metadata.get("g", G_SI))
+    out = []
+    for vel, angles in _SPEEDS:
+        channels = (vel, *angles)
+        if vel not in names or not any(a in names for a in angles):
+            out.append(_skip(channels, f"{vel} lag not checked: the flight lacks {vel} or {' and '.join(angles)}."))
+            continue
+        fixed = [np.ones_like(tc), tc, sig[vel]] + ([col] if vel == "w" and np.ptp(col) > 0 else [])
+        lag = fit_lag(flight.time, np.gradient(sig[vel], flight.dt), _speed_terms(sig, g)[vel], fixed,
+                      max_lag=MAX_LAG_S, edge=EDGE_S, bandwidth=int(1.0 / (cutoff * flight.dt)))
+        if lag is None:
+            out.append(_skip(channels, f"{vel} lag not checked: a channel is constant or the regressors are "
+                                       "collinear."))
+            continue
+        tau, sigma = -lag.tau, lag.sigma
+        out.append(Finding("velocity_lag", channels, tau, sigma, lag.converged and _lag_beyond(tau, sigma, flight.dt),
+                           f"{vel} lags its attitude-driven acceleration by {1e3 * tau:.1f} +- {1e3 * sigma:.1f} ms "
+                           f"(1 sigma; gain {lag.fit.beta[0]:.2f})"
+                           + ("." if lag.converged else "; the lag search did not converge.")))
+    return out
+
+
+def _speed_terms(sig: dict[str, np.ndarray], g: float) -> dict[str, np.ndarray]:
+    """Body-axis kinematic accelerations (m/s^2): gravity and the rate cross terms of ``V' = F/m - w x V + g``
+    (missing channels count as zero)."""
+    zero = np.zeros_like(next(iter(sig.values())))
+    u, v, w, p, q, r, phi, theta = (sig.get(n, zero) for n in ("u", "v", "w", "p", "q", "r", "phi", "theta"))
+    return {"u": r * v - q * w - g * np.sin(theta),
+            "v": p * w - r * u + g * np.sin(phi) * np.cos(theta),
+            "w": q * u - p * v + g * np.cos(phi) * np.cos(theta)}
+
+
+def _travel(flight: FlightData, max_travel: float) -> list[Finding]:
+    """Bias and drift of each velocity channel, judged by the net displacement they make over the record.
+
+    ``velocity = b + d (t - t_mid)`` (Newey-West errors). The bias moves the vehicle ``b T`` (the integrated
+    velocity over the ``T`` s record); the drift alone takes it out and back by ``d T^2 / 8``. Either is
+    significant when it exceeds ``max_travel`` m by more than :data:`LAG_SIGMA` sigma. Not corrected: a
+    real translation looks the same.
+    """
+    span = flight.duration
+    keep = _interior(flight.time, EDGE_S)
+    tc = flight.time - 0.5 * (flight.time[0] + flight.time[-1])
+    X = np.stack([np.ones_like(tc), tc], axis=1)[keep]
+    out = []
+    for vel in (v for v, _ in _SPEEDS if v in flight.output_names):
+        fit = hac_lstsq(flight.output(vel)[keep], X, min_bandwidth=int(1.0 / (VELOCITY_CUTOFF_HZ * flight.dt)))
+        for kind, j, reach, what in (("velocity_bias", 0, span, "net displacement"),
+                                     ("velocity_drift", 1, span**2 / 8, "excursion")):
+            value, sigma = float(fit.beta[j]), float(fit.se[j])
+            metres = abs(value) * reach
+            flag = bool(metres - max_travel > LAG_SIGMA * sigma * reach)
+            unit = "m/s" if j == 0 else "m/s^2"
+            out.append(Finding(kind, (vel,), value, sigma, flag,
+                               f"{vel} {'mean' if j == 0 else 'drift'} {value:.3g} +- {sigma:.2g} {unit} (1 sigma): a "
+                               f"{what} of {metres:.3g} +- {sigma * reach:.2g} m over the {span:.3g} s record "
+                               f"(plausible for hover: {max_travel:.3g} m)."))
+    return out
+
+
 def _frame_matrix(est: dict[str, float], unc: dict[str, float], vels: tuple[str, ...]) -> Float[np.ndarray, "2 2"]:
     """``R(rotation) diag(scale_u, scale_v)`` of the significant parts of a ``velocity_frame`` estimate."""
     parts = _frame_parts(est, unc)
@@ -461,6 +560,11 @@ def _beyond(deviation: float, sigma: float, kind: str) -> bool:
     """Significant: more than ``N_SIGMA`` sigma and more than the practical tolerance of ``kind``."""
     return bool(np.isfinite(deviation) and np.isfinite(sigma) and abs(deviation) > N_SIGMA * sigma
                 and abs(deviation) > TOLERANCE[kind])
+
+
+def _lag_beyond(tau: float, sigma: float, dt: float) -> bool:
+    """Significant lag: beyond :data:`LAG_SIGMA` sigma and at least one sample ``dt`` (s)."""
+    return bool(np.isfinite(tau) and np.isfinite(sigma) and abs(tau) > LAG_SIGMA * sigma and abs(tau) >= dt)
 
 
 def _skip(channels: tuple[str, ...], message: str) -> Finding:
