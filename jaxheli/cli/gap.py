@@ -11,8 +11,9 @@ from ..evaluate import resolve_params
 from ..flights import DEFAULT_DATA, load_flight
 from ..gap.blind import KINDS, markdown, run_benchmark
 from ..gap.compare import localise_model, write_localisation
-from ..gap.consistency import check, write_check
+from ..gap.consistency import MAX_TRAVEL_M, check, write_check
 from ..gap.diagnose import diagnose, prepare, ranking_table, write_diagnosis
+from ..io import load
 from ..model import G_SI
 from ._options import add_sim_options, outputs, sim_options
 
@@ -22,6 +23,10 @@ def add_check_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     p = subparsers.add_parser("check", help="data-consistency check of a flight (kinematics, velocity frame, biases)")
     p.add_argument("file", metavar="FILE", help="flight file (.mat .csv .npz .px4log .bin) or 'default'")
     p.add_argument("--out", default="jaxheli-check", help="output folder (consistency.json, consistency.png)")
+    p.add_argument("--max-travel", type=float, default=MAX_TRAVEL_M,
+                   help=f"plausible net displacement of the record, m (default {MAX_TRAVEL_M:g}: a hover test)")
+    p.add_argument("--zero-missing-sticks", action="store_true",
+                   help="logs only: read a log without stick channels (RC) with zero sticks")
     p.set_defaults(func=_cmd_check)
     return p
 
@@ -84,8 +89,8 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
-    flight = load_flight(args.file)
-    findings = check(flight)
+    flight = load(args.file, missing_inputs="zero") if args.zero_missing_sticks else load_flight(args.file)
+    findings = check(flight, args.max_travel)
     print(f"consistency of {flight.source} ({flight.n_samples} samples, dt {flight.dt:.4g} s); * = significant")
     for f in findings:
         print(f"{'*' if f.significant else ' '} {f.kind:<16} {','.join(f.channels):<10} {f.message}")

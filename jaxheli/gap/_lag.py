@@ -22,7 +22,7 @@ class LagFit:
     """Lag ``tau`` (s, > 0 when ``x`` must be advanced to match: ``x`` lags the target) and its 1-sigma.
 
     ``fit`` is the final regression on ``[w x(t + tau) + e, w x'(t + tau), *fixed]``; ``converged`` is
-    False when Gauss-Newton did not settle or the lag sits at the search limit.
+    False when Gauss-Newton did not settle or the lag lies within a sample of the search limit.
     """
 
     tau: float
@@ -63,15 +63,16 @@ def fit_lag(
     tau = (i - n) * dt
     if 0 < i < 2 * n and rss[i - 1] - 2 * rss[i] + rss[i + 1] > 0:
         tau += 0.5 * dt * (rss[i - 1] - rss[i + 1]) / (rss[i - 1] - 2 * rss[i] + rss[i + 1])
-    converged, fit = False, None
+    converged = False
     for _ in range(12):
-        fit = hac_lstsq(y, columns(tau, True), min_bandwidth=bandwidth)
-        step = fit.beta[1] / fit.beta[0]
+        beta, *_ = np.linalg.lstsq(columns(tau, True), y, rcond=None)
+        step = beta[1] / beta[0]
         tau = float(np.clip(tau + step, -max_lag, max_lag))
         if abs(step) < 1e-3 * dt:
             converged = True
             break
-    return LagFit(tau, float(fit.se[1] / abs(fit.beta[0])), fit, converged and abs(tau) < max_lag)
+    fit = hac_lstsq(y, columns(tau, True), min_bandwidth=bandwidth)
+    return LagFit(tau, float(fit.se[1] / abs(fit.beta[0])), fit, converged and abs(tau) < max_lag - dt)
 
 
 def _rss(y: Float[np.ndarray, "N"], X: Float[np.ndarray, "N m"]) -> float:

@@ -49,14 +49,21 @@ def hac_lstsq(y: Float[np.ndarray, "N"], X: Float[np.ndarray, "N m"], min_bandwi
     e = y - X @ beta
     n = e.size
     bandwidth = int(min(n // 4, max(min_bandwidth, 2 * _decorrelation_lag(e))))
-    score = X * e[:, None]
-    meat = score.T @ score
-    for lag in range(1, bandwidth + 1):
-        gamma = score[lag:].T @ score[:-lag]
-        meat += (1.0 - lag / (bandwidth + 1)) * (gamma + gamma.T)
+    gamma = _cross_covariances(X * e[:, None], bandwidth)
+    weights = 1.0 - np.arange(1, bandwidth + 1) / (bandwidth + 1)
+    tail = np.einsum("k,kij->ij", weights, gamma[1:])
+    meat = gamma[0] + tail + tail.T
     bread = np.linalg.inv(X.T @ X)
     cov = bread @ meat @ bread
     return Fit(beta=beta, cov=0.5 * (cov + cov.T), residual=e, bandwidth=bandwidth)
+
+
+def _cross_covariances(score: Float[np.ndarray, "N m"], max_lag: int) -> Float[np.ndarray, "L m m"]:
+    """``gamma[k] = sum_t score[t + k]^T score[t]`` for ``k = 0..max_lag`` (by FFT, zero-padded: no wrap)."""
+    n = score.shape[0]
+    spectrum = np.fft.rfft(score, 2 * n, axis=0)
+    products = spectrum[:, :, None] * spectrum.conj()[:, None, :]
+    return np.fft.irfft(products, 2 * n, axis=0)[: max_lag + 1]
 
 
 def _decorrelation_lag(e: Float[np.ndarray, "N"], threshold: float = 0.1) -> int:

@@ -21,7 +21,8 @@ Five stages, each run on the record corrected by the stages before it (as :func:
    rate cross terms of ``V' = F/m - omega x V + g`` (``u' = r v - q w - g sin theta + X``, ...), with a
    scale, a drag term, the collective for ``w``, a constant and time standing in for the unmeasured force.
    The lag includes the rotor's own lag behind the fuselage (its flapping time constant) where the force
-   model misses it, and ``w``'s is weak unless the attitude varies: its uncertainty says so.
+   model misses it, and ``w``'s is weak unless the attitude varies: its uncertainty says so. A lag is
+   significant only where the pair is identified (the acceleration's gain beyond 3 sigma of zero).
 5. **Velocity bias and drift** against the plausible net displacement of the record
    (:data:`MAX_TRAVEL_M`): the integrated velocity of a hover test stays within metres.
 
@@ -81,6 +82,9 @@ MIN_DURATION_S = 2.0
 LAG_SIGMA = 2.0
 """A lag (rate or velocity channel) is significant beyond this many sigma and at least one sample."""
 
+TRAVEL_SIGMA = 2.0
+"""A velocity bias or drift is significant when its displacement exceeds the plausible one by this many sigma."""
+
 MAX_TRAVEL_M = 10.0
 """Plausible net displacement of a hover record, m: a pilot holding station ends within a few metres of the
 start (or of the take-off point), so integrated velocity beyond 10 m is not a hover test but a biased or
@@ -132,7 +136,7 @@ def check(flight: FlightData, max_travel: float = MAX_TRAVEL_M) -> list[Finding]
     findings, fits = _time_scale(flight)
     current = correct(flight, findings)
     if findings[0].significant:
-        fits = _kinematic_fits(current)
+        fits, _ = _kinematic_fits(current)
     findings += _axis_findings(fits, current)
     if "r" in flight.output_names:
         findings.append(_skip(("r", "psi"), "r against dpsi/dt not checked: the flight carries no heading angle."))
@@ -202,9 +206,7 @@ class _AxisFit:
 
 def _time_scale(flight: FlightData) -> tuple[list[Finding], list[_AxisFit]]:
     """The common time-scale factor of all checkable axes (first finding) and the per-axis fits."""
-    fits = _kinematic_fits(flight)
-    skipped = [_skip((ang, r), f"{axis} kinematics not checked: the flight lacks {ang} or {r}.")
-               for axis, ang, r in _AXES if not {ang, r} <= set(flight.output_names)]
+    fits, skipped = _kinematic_fits(flight)
     if not fits:
         return [_skip(("time",), "Time base not checked: no axis has both an Euler angle and a varying body "
                                  "rate."), *skipped], fits
@@ -222,15 +224,23 @@ def _time_scale(flight: FlightData) -> tuple[list[Finding], list[_AxisFit]]:
     return [Finding("time_scale", ("time",), common, sigma, significant, message), *skipped], fits
 
 
-def _kinematic_fits(flight: FlightData) -> list[_AxisFit]:
-    """Fit every roll / pitch axis whose angle and rate are present and not constant."""
+def _kinematic_fits(flight: FlightData) -> tuple[list[_AxisFit], list[Finding]]:
+    """Fit every roll / pitch axis whose angle and rate are present and not constant; ``not_checked``
+    findings (with the reason) for the others."""
     cutoff, terms = _kinematic_terms(flight)
-    fits = []
-    for (axis, angle, rate), (ang, rat, c, e) in terms.items():
-        fit = _fit_axis(flight.time, ang, rat, c, e, flight.dt, cutoff)
+    fits, skipped = [], []
+    for axis, angle, rate in _AXES:
+        key = (axis, angle, rate)
+        fit = _fit_axis(flight.time, *terms[key], flight.dt, cutoff) if key in terms else None
         if fit is not None:
             fits.append(_AxisFit(axis, angle, rate, *fit))
-    return fits
+            continue
+        why = (f"the flight lacks {angle if angle not in flight.output_names else rate}"
+               if not {angle, rate} <= set(flight.output_names) else
+               f"{rate} is constant (no data)" if np.ptp(flight.output(rate)) == 0 else
+               "the regressors are collinear")
+        skipped.append(_skip((rate, angle), f"{rate} against d{angle}/dt (lag, scale, bias) not checked: {why}."))
+    return fits, skipped
 
 
 def _kinematic_terms(flight: FlightData) -> tuple[float, dict[tuple[str, str, str], tuple[np.ndarray, ...]]]:
@@ -241,8 +251,7 @@ def _kinematic_terms(flight: FlightData) -> tuple[float, dict[tuple[str, str, st
     cutoff = min(KINEMATIC_CUTOFF_HZ, 0.4 * fs)
     if flight.duration - 2 * EDGE_S < MIN_DURATION_S:
         return cutoff, {}
-    y = _lowpass(flight.outputs, cutoff, fs)
-    sig = {n: y[:, i] for i, n in enumerate(names)}
+    sig = _signals(flight, cutoff)
     zero = np.zeros(flight.n_samples)
     phi, theta, q, r = (sig.get(n, zero) for n in ("phi", "theta", "q", "r"))
     couple = {"roll": (np.ones_like(phi), (q * np.sin(phi) + r * np.cos(phi)) * np.tan(theta)),
@@ -283,7 +292,7 @@ def _axis_findings(fits: list[_AxisFit], flight: FlightData) -> list[Finding]:
         lag_ok = f.converged and _lag_beyond(v["tau"], sg["tau"], flight.dt)
         out.append(Finding("kinematic_lag", (f.rate, f.angle), v["tau"], sg["tau"], lag_ok,
                            f"{f.rate} lags {f.angle} by {1e3 * v['tau']:.1f} +- {1e3 * sg['tau']:.1f} ms (1 sigma)"
-                           + ("." if f.converged else "; the lag search did not converge.")))
+                           + ("." if f.converged else "; the lag search did not converge or reached its limit.")))
         out.append(Finding("rate_bias", (f.rate,), v["b"], sg["b"], _beyond(v["b"], sg["b"], "rate_bias"),
                            f"{f.rate} has a bias of {v['b']:.4f} +- {sg['b']:.4f} rad/s (1 sigma) against "
                            f"d{f.angle}/dt."))
@@ -314,9 +323,8 @@ def _velocity_fits(flight: FlightData) -> tuple[list[tuple[str, str, float]], li
         return pairs, [], skipped
     fs = 1.0 / flight.dt
     cutoff = min(VELOCITY_CUTOFF_HZ, 0.4 * fs)
-    y = _lowpass(flight.outputs, cutoff, fs)
     sticks = _lowpass(flight.inputs - flight.inputs.mean(axis=0), cutoff, fs)
-    sig = {n: y[:, i] for i, n in enumerate(names)}
+    sig = _signals(flight, cutoff)
     tc = flight.time - 0.5 * (flight.time[0] + flight.time[-1])
     nuisance = [sig[n] for n in ("p", "q") if n in sig and np.ptp(sig[n]) > 0]
     nuisance += [sticks[:, j] for j in range(len(INPUT_NAMES)) if np.ptp(flight.inputs[:, j]) > 0]
@@ -415,8 +423,7 @@ def _velocity_lags(flight: FlightData) -> list[Finding]:
     names = flight.output_names
     fs = 1.0 / flight.dt
     cutoff = min(VELOCITY_CUTOFF_HZ, 0.4 * fs)
-    y = _lowpass(flight.outputs, cutoff, fs)
-    sig = {n: y[:, i] for i, n in enumerate(names)}
+    sig = _signals(flight, cutoff)
     col = _lowpass(flight.inputs[:, INPUT_NAMES.index("col")] - flight.inputs[:, INPUT_NAMES.index("col")].mean(),
                    cutoff, fs)
     tc = flight.time - 0.5 * (flight.time[0] + flight.time[-1])
@@ -424,21 +431,27 @@ def _velocity_lags(flight: FlightData) -> list[Finding]:
     out = []
     for vel, angles in _SPEEDS:
         channels = (vel, *angles)
-        if vel not in names or not any(a in names for a in angles):
-            out.append(_skip(channels, f"{vel} lag not checked: the flight lacks {vel} or {' and '.join(angles)}."))
+        why = (f"the flight lacks {vel}" if vel not in names else
+               f"the flight lacks {' and '.join(angles)}" if not any(a in names for a in angles) else
+               f"{vel} is constant (no data)" if np.ptp(flight.output(vel)) == 0 else "")
+        if why:
+            out.append(_skip(channels, f"{vel} lag not checked: {why}."))
             continue
         fixed = [np.ones_like(tc), tc, sig[vel]] + ([col] if vel == "w" and np.ptp(col) > 0 else [])
         lag = fit_lag(flight.time, np.gradient(sig[vel], flight.dt), _speed_terms(sig, g)[vel], fixed,
                       max_lag=MAX_LAG_S, edge=EDGE_S, bandwidth=int(1.0 / (cutoff * flight.dt)))
         if lag is None:
-            out.append(_skip(channels, f"{vel} lag not checked: a channel is constant or the regressors are "
-                                       "collinear."))
+            out.append(_skip(channels, f"{vel} lag not checked: the regressors are collinear."))
             continue
         tau, sigma = -lag.tau, lag.sigma
-        out.append(Finding("velocity_lag", channels, tau, sigma, lag.converged and _lag_beyond(tau, sigma, flight.dt),
+        gain, sig_gain = float(lag.fit.beta[0]), float(lag.fit.se[0])
+        tied = abs(gain) > N_SIGMA * sig_gain
+        note = (f"; the pair is not identified (gain within {N_SIGMA:g} sigma of 0)" if not tied else
+                "; the lag search did not converge or reached its limit" if not lag.converged else "")
+        out.append(Finding("velocity_lag", channels, tau, sigma,
+                           tied and lag.converged and _lag_beyond(tau, sigma, flight.dt),
                            f"{vel} lags its attitude-driven acceleration by {1e3 * tau:.1f} +- {1e3 * sigma:.1f} ms "
-                           f"(1 sigma; gain {lag.fit.beta[0]:.2f})"
-                           + ("." if lag.converged else "; the lag search did not converge.")))
+                           f"(1 sigma; gain {gain:.2f} +- {sig_gain:.2f}){note}."))
     return out
 
 
@@ -457,7 +470,7 @@ def _travel(flight: FlightData, max_travel: float) -> list[Finding]:
 
     ``velocity = b + d (t - t_mid)`` (Newey-West errors). The bias moves the vehicle ``b T`` (the integrated
     velocity over the ``T`` s record); the drift alone takes it out and back by ``d T^2 / 8``. Either is
-    significant when it exceeds ``max_travel`` m by more than :data:`LAG_SIGMA` sigma. Not corrected: a
+    significant when it exceeds ``max_travel`` m by more than :data:`TRAVEL_SIGMA` sigma. Not corrected: a
     real translation looks the same.
     """
     span = flight.duration
@@ -465,18 +478,21 @@ def _travel(flight: FlightData, max_travel: float) -> list[Finding]:
     tc = flight.time - 0.5 * (flight.time[0] + flight.time[-1])
     X = np.stack([np.ones_like(tc), tc], axis=1)[keep]
     out = []
-    for vel in (v for v, _ in _SPEEDS if v in flight.output_names):
+    for vel, _ in _SPEEDS:
+        if vel not in flight.output_names or np.ptp(flight.output(vel)) == 0:
+            why = "the flight lacks it" if vel not in flight.output_names else "it is constant (no data)"
+            out.append(_skip((vel,), f"{vel} bias and drift not checked: {why}."))
+            continue
         fit = hac_lstsq(flight.output(vel)[keep], X, min_bandwidth=int(1.0 / (VELOCITY_CUTOFF_HZ * flight.dt)))
-        for kind, j, reach, what in (("velocity_bias", 0, span, "net displacement"),
-                                     ("velocity_drift", 1, span**2 / 8, "excursion")):
+        for kind, j, reach, what in (("velocity_bias", 0, span, "a net displacement"),
+                                     ("velocity_drift", 1, span**2 / 8, "an excursion")):
             value, sigma = float(fit.beta[j]), float(fit.se[j])
             metres = abs(value) * reach
-            flag = bool(metres - max_travel > LAG_SIGMA * sigma * reach)
             unit = "m/s" if j == 0 else "m/s^2"
-            out.append(Finding(kind, (vel,), value, sigma, flag,
-                               f"{vel} {'mean' if j == 0 else 'drift'} {value:.3g} +- {sigma:.2g} {unit} (1 sigma): a "
+            out.append(Finding(kind, (vel,), value, sigma, bool(metres - max_travel > TRAVEL_SIGMA * sigma * reach),
+                               f"{vel} {'mean' if j == 0 else 'drift'} {value:.3g} +- {sigma:.2g} {unit} (1 sigma): "
                                f"{what} of {metres:.3g} +- {sigma * reach:.2g} m over the {span:.3g} s record "
-                               f"(plausible for hover: {max_travel:.3g} m)."))
+                               f"(plausible: {max_travel:.3g} m)."))
     return out
 
 
@@ -541,6 +557,17 @@ def _lowpass(x: np.ndarray, cutoff: float, fs: float) -> np.ndarray:
     """Zero-phase order-4 Butterworth low-pass along time (columns of ``x``)."""
     sos = scipy.signal.butter(4, cutoff, fs=fs, output="sos")
     return scipy.signal.sosfiltfilt(sos, x, axis=0)
+
+
+def _signals(flight: FlightData, cutoff: float) -> dict[str, np.ndarray]:
+    """Outputs low-passed at ``cutoff`` Hz by name, the roll angle unwrapped first (an inverted vehicle's
+    roll jumps between +-pi; the Euler relations use only its sine and cosine)."""
+    y = flight.outputs.copy()
+    if "phi" in flight.output_names:
+        c = flight.output_names.index("phi")
+        y[:, c] = np.unwrap(y[:, c])
+    y = _lowpass(y, cutoff, 1.0 / flight.dt)
+    return {n: y[:, i] for i, n in enumerate(flight.output_names)}
 
 
 def _interior(t: np.ndarray, edge: float) -> np.ndarray:
