@@ -49,21 +49,25 @@ def hac_lstsq(y: Float[np.ndarray, "N"], X: Float[np.ndarray, "N m"], min_bandwi
     e = y - X @ beta
     n = e.size
     bandwidth = int(min(n // 4, max(min_bandwidth, 2 * _decorrelation_lag(e))))
-    gamma = _cross_covariances(X * e[:, None], bandwidth)
-    weights = 1.0 - np.arange(1, bandwidth + 1) / (bandwidth + 1)
-    tail = np.einsum("k,kij->ij", weights, gamma[1:])
-    meat = gamma[0] + tail + tail.T
+    meat = _bartlett_meat(X * e[:, None], bandwidth)
     bread = np.linalg.inv(X.T @ X)
     cov = bread @ meat @ bread
     return Fit(beta=beta, cov=0.5 * (cov + cov.T), residual=e, bandwidth=bandwidth)
 
 
-def _cross_covariances(score: Float[np.ndarray, "N m"], max_lag: int) -> Float[np.ndarray, "L m m"]:
-    """``gamma[k] = sum_t score[t + k]^T score[t]`` for ``k = 0..max_lag`` (by FFT, zero-padded: no wrap)."""
+def _bartlett_meat(score: Float[np.ndarray, "N m"], bandwidth: int) -> Float[np.ndarray, "m m"]:
+    """``sum_|k|<=B (1 - |k| / (B + 1)) sum_t score[t + k]^T score[t]``, evaluated in the frequency domain
+    (zero-padded to ``2 N``, so no wrap-around): the kernel's transform weights the score's periodogram."""
     n = score.shape[0]
-    spectrum = np.fft.rfft(score, 2 * n, axis=0)
-    products = spectrum[:, :, None] * spectrum.conj()[:, None, :]
-    return np.fft.irfft(products, 2 * n, axis=0)[: max_lag + 1]
+    size = 2 * n
+    kernel = np.zeros(size)
+    kernel[: bandwidth + 1] = 1.0 - np.arange(bandwidth + 1) / (bandwidth + 1)
+    kernel[size - bandwidth:] = kernel[1: bandwidth + 1][::-1]
+    spectrum = np.fft.rfft(score, size, axis=0)
+    weight = np.fft.rfft(kernel).real
+    weight[1:-1] *= 2.0  # the half spectrum stands for both signs of frequency
+    re, im = spectrum.real, spectrum.imag
+    return ((re * weight[:, None]).T @ re + (im * weight[:, None]).T @ im) / size
 
 
 def _decorrelation_lag(e: Float[np.ndarray, "N"], threshold: float = 0.1) -> int:
