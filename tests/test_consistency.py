@@ -11,6 +11,7 @@ import pytest
 from jaxheli import load, piloted_flight, save_npz
 from jaxheli.cli.gap import add_check_parser as add_parser
 from jaxheli.gap._regress import hac_lstsq, well_posed
+from jaxheli.data.flight import FlightDataError
 from jaxheli.gap.consistency import Finding, check, correct
 
 KEYS = {"kind", "channels", "estimate", "uncertainty", "significant", "message"}
@@ -54,6 +55,10 @@ def _rate_drift(f):
     return _with(f, p=f.output("p") + 0.002 * (f.time - 0.5 * (f.time[0] + f.time[-1])))
 
 
+def _u_lag(f):
+    return _with(f, u=np.interp(f.time - 0.15, f.time, f.output("u")))
+
+
 def _roll_offset(f):
     return _with(f, phi=f.output("phi") + 0.05)
 
@@ -71,6 +76,7 @@ DEFECTS = [
     (lambda f: _rotate(f, math.radians(30.0)), "velocity_frame", ("u", "v"), "rotation", math.radians(30.0)),
     (lambda f: _rotate(f, 0.0, (-1.0, 1.0)), "velocity_frame", ("u", "v"), "scale_u", -1.0),
     (lambda f: _rotate(f, math.radians(-20.0), (1.0, -1.0)), "velocity_frame", ("u", "v"), "scale_v", -1.0),
+    (_u_lag, "velocity_lag", ("u", "theta"), None, 0.15),
     (_roll_offset, "attitude_bias", ("phi",), None, 0.05),
     (_pitch_drift, "attitude_drift", ("theta",), None, 0.002),
 ]
@@ -86,7 +92,8 @@ def test_clean_flight_flags_nothing(clean):
     findings = check(clean)
     assert not [f for f in findings if f.significant]
     kinds = {f.kind for f in findings}
-    assert {"time_scale", "kinematic_lag", "rate_bias", "rate_drift", "velocity_frame", "attitude_bias"} <= kinds
+    assert {"time_scale", "kinematic_lag", "rate_bias", "rate_drift", "velocity_frame", "attitude_bias",
+            "velocity_lag", "velocity_bias", "velocity_drift"} <= kinds
     for f in findings:
         assert set(f.to_json()) == KEYS
 
@@ -130,7 +137,8 @@ def test_missing_constant_and_short_channels_never_crash(clean):
     assert any(f.kind == "not_checked" and f.channels == ("u", "theta") for f in angles_only)
     assert not any(f.significant for f in angles_only)
     no_velocity = check(_with(clean, u=np.zeros(clean.n_samples), v=np.zeros(clean.n_samples)))
-    assert [f.channels for f in no_velocity if f.kind == "not_checked"] == [("u", "theta"), ("v", "phi")]
+    assert [f.channels for f in no_velocity if f.kind == "not_checked"] == [
+        ("r", "psi"), ("u", "theta"), ("v", "phi"), ("u", "theta"), ("v", "phi"), ("u",), ("v",)]
     one_axis = check(clean.select(("u", "theta", "q")))
     assert {f.kind for f in one_axis} >= {"time_scale", "velocity_scale", "attitude_bias", "not_checked"}
     short = check(clean.replace(time=clean.time[:150], inputs=clean.inputs[:150], outputs=clean.outputs[:150]))
@@ -184,12 +192,44 @@ def test_cli_handler_writes_json_and_plot(clean, tmp_path, capsys):
     assert load(path).n_samples == clean.n_samples
 
 
-def test_real_flight_c_runs(shared_data):
-    flight = load(shared_data / "trex550" / "ppr_data.mat")
+SHARED = ["trex550/tested.mat", "trex550/Data_graphready.mat", "trex550/ppr_data.mat",
+          "px4logs/2016-09-08/09_16_59.px4log", "px4logs/2016-08-09/13_25_39.px4log",
+          "px4logs/sess006/log001.px4log", "px4logs/reference/log001.bin"]
+
+
+@pytest.mark.parametrize("name", SHARED)
+def test_every_shared_flight_reports_every_pair(shared_data, name):
+    """Each kinematic pair has a lag with its sigma and each velocity a bias and drift, or a reason why not."""
+    path = shared_data / name
+    flight = load(path, missing_inputs="zero") if path.suffix == ".bin" else load(path)
     findings = check(flight)
     assert all(set(f.to_json()) == KEYS for f in findings)
-    json.dumps([f.to_json() for f in findings])
+    json.dumps([f.to_json() for f in findings], allow_nan=False)
     correct(flight, findings)
+    if flight.duration < 3.0:
+        assert [f.kind for f in findings] == ["not_checked"]
+        return
+    for kind, channels in [("kinematic_lag", ("p", "phi")), ("kinematic_lag", ("q", "theta")),
+                           ("velocity_lag", ("u", "theta")), ("velocity_lag", ("v", "phi")),
+                           ("velocity_lag", ("w", "phi", "theta"))]:
+        hits = [f for f in findings if f.channels == channels and f.kind == kind]
+        if hits:
+            (hit,) = hits
+            assert np.isfinite(hit.estimate) and 0 < hit.uncertainty < 1.0, hit.message
+            assert "ms (1 sigma" in hit.message
+        else:
+            assert any(f.channels == channels and f.kind == "not_checked" for f in findings)
+            assert channels[0] not in flight.output_names or np.ptp(flight.output(channels[0])) == 0
+    assert [f.kind for f in findings if f.channels == ("r", "psi")] == ["not_checked"]
+    for vel in ("u", "v", "w"):
+        kinds = sorted(f.kind for f in findings if f.channels == (vel,) and "velocity" in f.kind or
+                       f.channels == (vel,) and f.kind == "not_checked")
+        assert kinds in (["velocity_bias", "velocity_drift"], ["not_checked"]), (vel, kinds)
+
+
+def test_parameter_file_is_not_a_flight(shared_data):
+    with pytest.raises(FlightDataError, match="inr"):
+        load(shared_data / "trex550" / "Record.mat")
 
 
 def test_correct_names_a_missing_channel(clean):
@@ -197,5 +237,5 @@ def test_correct_names_a_missing_channel(clean):
     with pytest.raises(ValueError, match="channel 'p'"):
         correct(clean.select(("q", "theta")), [finding])
     no_rates = check(clean.select(("u", "v", "phi", "theta")))
-    assert [f.channels for f in no_rates if f.kind == "not_checked"] == [("time",), ("phi", "p"), ("theta", "q")]
+    assert [f.channels for f in no_rates if f.kind == "not_checked"][:3] == [("time",), ("p", "phi"), ("q", "theta")]
     json.dumps([f.to_json() for f in no_rates], allow_nan=False)
