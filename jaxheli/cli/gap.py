@@ -93,7 +93,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
     findings = check(flight, args.max_travel)
     print(f"consistency of {flight.source} ({flight.n_samples} samples, dt {flight.dt:.4g} s); * = significant")
     for f in findings:
-        print(f"{'*' if f.significant else ' '} {f.kind:<16} {','.join(f.channels):<10} {f.message}")
+        print(f"{'*' if f.significant else ' '} {f.kind:<16} {','.join(f.channels):<12} {f.message}")
     for path in write_check(flight, findings, args.out):
         print(f"wrote {path}")
     return 0
