@@ -76,7 +76,6 @@ DEFECTS = [
     (lambda f: _rotate(f, math.radians(30.0)), "velocity_frame", ("u", "v"), "rotation", math.radians(30.0)),
     (lambda f: _rotate(f, 0.0, (-1.0, 1.0)), "velocity_frame", ("u", "v"), "scale_u", -1.0),
     (lambda f: _rotate(f, math.radians(-20.0), (1.0, -1.0)), "velocity_frame", ("u", "v"), "scale_v", -1.0),
-    (_u_lag, "velocity_lag", ("u", "theta"), None, 0.15),
     (_roll_offset, "attitude_bias", ("phi",), None, 0.05),
     (_pitch_drift, "attitude_drift", ("theta",), None, 0.002),
 ]
@@ -116,6 +115,15 @@ def test_defect_found_within_uncertainty_and_corrected(clean, inject, kind, chan
     assert not [f.message for f in check(fixed) if f.significant]
     assert fixed.metadata["preprocessing"][-1]["applied"][0]["kind"] == kind
     assert "consistency.correct" == fixed.metadata["preprocessing"][-1]["step"]
+
+
+def test_velocity_lag_found_within_uncertainty_and_not_corrected(clean):
+    flight = _u_lag(clean)
+    findings = check(flight)
+    found = _find(findings, "velocity_lag", ("u", "theta"))
+    assert found.significant and abs(found.estimate - 0.15) < 3 * found.uncertainty < 0.06, found.message
+    assert [f.kind for f in findings if f.significant] == ["velocity_lag"]
+    assert correct(flight, findings).output("u").tolist() == flight.output("u").tolist()
 
 
 def test_correct_restores_the_clean_channels(clean):

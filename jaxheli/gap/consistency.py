@@ -22,7 +22,8 @@ Five stages, each run on the record corrected by the stages before it (as :func:
    scale, a drag term, the collective for ``w``, a constant and time standing in for the unmeasured force.
    The lag includes the rotor's own lag behind the fuselage (its flapping time constant) where the force
    model misses it, and ``w``'s is weak unless the attitude varies: its uncertainty says so. A lag is
-   significant only where the pair is identified (the acceleration's gain beyond 3 sigma of zero).
+   significant only where the pair is identified (the acceleration's gain beyond 3 sigma of zero), and
+   not corrected: a lagging sensor and the rotor's own lag look the same here.
 5. **Velocity bias and drift** against the plausible net displacement of the record
    (:data:`MAX_TRAVEL_M`): the integrated velocity of a hover test stays within metres.
 
@@ -91,7 +92,7 @@ start (or of the take-off point), so integrated velocity beyond 10 m is not a ho
 drifting velocity channel. Records of translating flight need a larger bound (``check(max_travel=...)``)."""
 
 _ORDER = ("time_scale", "rate_scale", "kinematic_lag", "rate_bias", "rate_drift", "velocity_frame", "velocity_scale",
-          "attitude_bias", "attitude_drift", "velocity_lag")
+          "attitude_bias", "attitude_drift")
 """The order in which :func:`correct` applies findings (the stage order of :func:`check`)."""
 
 _AXES = (("roll", "phi", "p"), ("pitch", "theta", "q"))
@@ -106,8 +107,9 @@ class Finding:
     """One data-consistency result.
 
     ``estimate`` and ``uncertainty`` (1 sigma, same shape: a float or a ``{name: float}`` dict) are in SI
-    units (s, rad, rad/s, rad/s^2, scale factors dimensionless); ``significant`` says whether the data
-    need correcting; ``message`` is one plain sentence with the numbers.
+    units (s, rad, rad/s, rad/s^2, m/s, m/s^2, scale factors dimensionless); ``significant`` says whether
+    the data need correcting (velocity lags, biases and drifts: need a look, :func:`correct` leaves them);
+    ``message`` is one plain sentence with the numbers.
     """
 
     kind: str
@@ -153,8 +155,9 @@ def correct(flight: FlightData, findings: list[Finding]) -> FlightData:
     """Apply the significant findings to ``flight`` and log them in ``metadata["preprocessing"]``.
 
     Order (:data:`_ORDER`, that of :func:`check`): time base, gyro scale, rate lag, rate bias and drift,
-    velocity frame or scale, attitude bias and drift, velocity lag (the velocity channel advanced). Velocity scales are undone in sign always and in
-    magnitude only where significant.
+    velocity frame or scale, attitude bias and drift. Velocity scales are undone in sign always and in
+    magnitude only where significant. Velocity lags, biases and drifts are reported, never applied: the
+    rotor's flapping lag and a real translation look the same.
     """
     time, outputs = flight.time.copy(), flight.outputs.copy()
     names = flight.output_names
@@ -174,7 +177,7 @@ def correct(flight: FlightData, findings: list[Finding]) -> FlightData:
             outputs[:, col(f.channels[0])] /= est
         elif kind == "velocity_scale":
             outputs[:, col(f.channels[0])] /= _applied_scale(est, f.uncertainty)
-        elif kind in ("kinematic_lag", "velocity_lag"):
+        elif kind == "kinematic_lag":
             c = col(f.channels[0])
             outputs[:, c] = np.interp(time + est, time, outputs[:, c])
         elif kind in ("rate_bias", "attitude_bias"):
