@@ -8,7 +8,8 @@ Five stages, each run on the record corrected by the stages before it (as :func:
    rate's coefficient and ``e`` the cross-axis terms. Estimates: the time-scale factor ``k = 1 / s``
    (recorded time / true time; all axes agree when the time base is off, one axis alone means a gyro
    scale error), the lag ``tau`` (s, > 0 when the rate channel lags the angle; :func:`~._lag.fit_lag`:
-   a whole-sample grid, a parabola, then Gauss-Newton on a fractional shift), the rate bias ``b`` (rad/s) and its drift ``d`` (rad/s^2).
+   a whole-sample grid, a parabola, then Gauss-Newton on a fractional shift), the rate bias ``b`` (rad/s)
+   and its drift ``d`` (rad/s^2).
 2. **Velocity frame** (velocities against attitude): near hover ``u' = -g theta + ...`` and
    ``v' = g phi + ...``. Each velocity derivative is regressed on the attitude angles, the velocities
    (speed derivatives), the body rates and the centred sticks (rotor flapping, quasi-steady), a constant
@@ -267,7 +268,8 @@ def _fit_axis(
     t: Float[np.ndarray, "N"], angle: np.ndarray, rate: np.ndarray, c: np.ndarray, e: np.ndarray, dt: float,
     cutoff: float,
 ) -> tuple[dict[str, float], dict[str, float], bool] | None:
-    """Lag by :func:`~._lag.fit_lag`, least squares for the rest: ``angle' = s (c rate(t + tau) + e - c b - c d t')``."""
+    """Lag by :func:`~._lag.fit_lag`, least squares for the rest:
+    ``angle' = s (c rate(t + tau) + e - c b - c d t')``."""
     tc = t - 0.5 * (t[0] + t[-1])
     lag = fit_lag(t, np.gradient(angle, dt), rate, [c, c * tc], max_lag=MAX_LAG_S, edge=EDGE_S,
                   bandwidth=int(1.0 / (cutoff * dt)), weight=c, offset=e)
@@ -448,11 +450,11 @@ def _velocity_lags(flight: FlightData) -> list[Finding]:
             continue
         tau, sigma = -lag.tau, lag.sigma
         gain, sig_gain = float(lag.fit.beta[0]), float(lag.fit.se[0])
-        tied = abs(gain) > N_SIGMA * sig_gain
-        note = (f"; the pair is not identified (gain within {N_SIGMA:g} sigma of 0)" if not tied else
+        identified = abs(gain) > N_SIGMA * sig_gain
+        note = (f"; the pair is not identified (gain within {N_SIGMA:g} sigma of 0)" if not identified else
                 "; the lag search did not converge or reached its limit" if not lag.converged else "")
         out.append(Finding("velocity_lag", channels, tau, sigma,
-                           tied and lag.converged and _lag_beyond(tau, sigma, flight.dt),
+                           identified and lag.converged and _lag_beyond(tau, sigma, flight.dt),
                            f"{vel} lags its attitude-driven acceleration by {1e3 * tau:.1f} +- {1e3 * sigma:.1f} ms "
                            f"(1 sigma; gain {gain:.2f} +- {sig_gain:.2f}){note}."))
     return out
