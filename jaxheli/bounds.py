@@ -3,7 +3,7 @@
 ``unit = (theta - lower) / (upper - lower)`` maps each axis to ``[0, 1]`` (pinned axes, of zero width, read
 0): the scale-free space population optimisers search and gradient solvers step in (``Lb``, width 100, and
 ``tf``, width 1, then weigh alike). Gradient solvers keep the box by simulating the clipped point
-:meth:`Bounds.clip_unit` and adding a penalty on the distance outside, so the slope stays 1 up to the bound (a
+:meth:`Bounds.clip_unit` and adding a penalty on the distance outside (:meth:`Bounds.penalty`), so the slope stays 1 up to the bound (a
 sigmoid map flattens there and freezes parameters that start or end near a bound).
 """
 
@@ -21,6 +21,10 @@ from .model import LOWER, PARAM_NAMES, UPPER
 
 Free = Bool[ArrayLike, "40"] | Sequence[str] | None
 """Free parameters: a mask over :data:`PARAM_NAMES`, a list of names, or ``None`` for every non-pinned one."""
+
+
+PENALTY = 1e3
+"""Weight of the distance outside the box (unit coordinates) in a least-squares solver's residuals."""
 
 
 def _vector(value: ArrayLike) -> Float[Array, "dim"]:
@@ -78,6 +82,13 @@ class Bounds(eqx.Module):
         """
         unit = jnp.asarray(unit)
         return jnp.where(unit < 0.0, 0.0, jnp.where(unit > 1.0, 1.0, unit))
+
+    @staticmethod
+    def penalty(unit: Float[ArrayLike, "*batch dim"]) -> Float[Array, "*batch dim"]:
+        """``PENALTY (unit - clip(unit))``: residuals a least-squares solver appends so that its sum of squares
+        rises steeply (but C1) past a bound; zero in the box."""
+        unit = jnp.asarray(unit)
+        return PENALTY * (unit - Bounds.clip_unit(unit))
 
     def midpoint(self) -> Float[np.ndarray, "dim"]:
         """The centre of the box (pinned parameters at their pinned value)."""

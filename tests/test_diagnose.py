@@ -15,7 +15,8 @@ from jaxheli.effects import plant as augmented, registry as effects
 from jaxheli.gap.diagnose import diagnose, effect_eta, predictions, shared_outputs
 from jaxheli.gap.predictor import make_predictor
 from jaxheli.io import save_npz
-from jaxheli.model import TABLE2
+from jaxheli.model import PARAM_NAMES, TABLE2
+from jaxheli.optim.pem import pem
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS, piloted_flight
 from filtered_restart import reference_prediction
 
@@ -44,13 +45,15 @@ def _cli(argv):
 
 @pytest.fixture(scope="module")
 def delayed(tmp_path_factory):
-    """The CLI run on a flight pair with a 80 ms lon input delay: (train, validate, diagnosis.json, folder)."""
+    """The CLI run, base model frozen, on a flight pair with a 80 ms lon input delay: (train, validate,
+    diagnosis.json, folder)."""
     train, validate = _flight(DELAY, 3, 0.2), _flight(DELAY, 4, 0.25)
     folder = tmp_path_factory.mktemp("diagnose")
     save_npz(train, folder / "train.npz")
     save_npz(validate, folder / "validate.npz")
     assert _cli(["--model", "table2", "--train", str(folder / "train.npz"), "--validate",
-                 str(folder / "validate.npz"), "--out", str(folder / "out"), "--max-steps", "15", "--top", "1"]) == 0
+                 str(folder / "validate.npz"), "--out", str(folder / "out"), "--max-steps", "15", "--top", "1",
+                 "--frozen-base"]) == 0
     return train, validate, json.loads((folder / "out" / "diagnosis.json").read_text()), folder / "out"
 
 
@@ -66,7 +69,12 @@ def test_injected_delay_is_diagnosed_and_reported(delayed):
         assert {"kind", "channels", "estimate", "uncertainty", "significant", "message"} <= set(f)
     assert sorted(e["effect"] for e in d["ranking"]) == sorted(effects.ALL)
     for e in d["ranking"]:
-        assert {"effect", "where", "params", "shrink_pct", "shrink_by_channel", "significant"} <= set(e)
+        assert {"effect", "where", "params", "shrink_pct", "shrink_se_pct", "shrink_by_channel", "significant",
+                "tied_with", "at_bound", "lr", "theta"} <= set(e)
+        assert {"statistic", "dof", "p_value", "delta_aic"} <= set(e["lr"])
+        for name, value in e["params"].items():
+            assert value["interval"][0] <= value["value"] <= value["interval"][1], name
+    assert d["base_refit"] == {"joint": False}
     shrinks = [e["shrink_pct"] for e in d["ranking"]]
     assert shrinks == sorted(shrinks, reverse=True)
     top = d["ranking"][0]
@@ -100,7 +108,9 @@ def test_gaps_recomputed_independently(delayed):
     assert np.all(worst < 0.05), dict(zip(OUT, worst))
     assert d["gap_after"]["best"]["total"] < 1.1 * float(np.mean(nmse(oracle, validate.outputs)))
     eta = effect_eta(top["effect"], top["params"], OUT)
-    assert np.count_nonzero(eta != augmented.no_effect(OUT)) == 4  # the four delays, nothing else
+    delays = augmented.layout(OUT)["delay"]
+    changed = set(np.flatnonzero(eta != augmented.no_effect(OUT)))
+    assert delays.start + 1 in changed and changed <= set(range(delays.start, delays.stop))  # delays, nothing else
 
 
 def test_clean_flight_gives_no_significant_effect():
@@ -110,6 +120,47 @@ def test_clean_flight_gives_no_significant_effect():
     assert not any(e["significant"] for e in d["ranking"])
     assert d["combination"] is None and d["gap_after"]["combination"] is None
     assert abs(d["ranking"][0]["shrink_pct"]) < 10
+    assert d["base_refit"]["joint"] and d["base_refit"]["settled"] and not d["base_refit"]["under_fitted"]
+
+
+def test_joint_reidentification_finds_the_delay_and_credits_it_beyond_the_refitted_base(delayed):
+    """Re-identified jointly (the default), the base model absorbs part of the withheld delay (the given base
+    shrinks when re-fitted alone), and the delay is credited only beyond that; its fit stays in its box, and
+    the reference's gap matches the numpy predictor run on its re-fitted parameters."""
+    train, validate, frozen, _ = delayed
+    d = diagnose(TABLE2, train, validate, **OPTIONS)
+    refit = d["base_refit"]
+    assert refit["joint"] and refit["settled"]
+    top = d["ranking"][0]
+    assert top["effect"] == "input_delay" and top["significant"] and top["where"] == ["lon"]
+    assert 0.05 < top["params"]["delay_lon"]["value"] < 0.1 and top["lr"]["p_value"] < 1e-6
+    assert not any(e["significant"] for e in d["ranking"][2:])
+    for e in d["ranking"]:
+        lower, upper = effects.box(e["effect"], OUT)
+        values = np.array([e["params"][p.name]["value"] for p in effects.params(e["effect"], OUT)])
+        assert np.all(lower <= values) and np.all(values <= upper), e["effect"]
+    assert d["verdict"].startswith(("input_delay", "base model under-fitted")) and "input_delay" in d["verdict"]
+    theta = np.array([refit["theta"][n] for n in PARAM_NAMES])
+    reference = reference_prediction(theta, validate, segment=2.0, track=d["track"])
+    np.testing.assert_allclose(np.mean(nmse(reference, validate.outputs)), refit["gap"], rtol=1e-6)
+    np.testing.assert_allclose(top["gap_base"], refit["gap"], rtol=1e-9)
+    np.testing.assert_allclose(d["gap_before"]["total"], refit["gap_base"], rtol=1e-9)
+    np.testing.assert_allclose(d["gap_before"]["total"], frozen["gap_before"]["total"], rtol=1e-9)
+    np.testing.assert_allclose(d["gap_after"]["best"]["total"], top["gap"], rtol=1e-6)
+
+
+def test_an_under_fitted_base_model_is_named_not_an_effect():
+    """The failure mode: a model identified with 3 PEM steps, flights with no effect. Re-fitted alone it is
+    still descending, and every candidate's extra freedom buys more of that descent (shrinks beyond it well
+    over the 3 % floor); the diagnosis says the base is under-fitted and credits no effect."""
+    train, validate = _flight(0.0, 3, 0.2), _flight(0.0, 4, 0.25)
+    base = pem(train, max_steps=3, outputs=OUT).theta
+    d = diagnose(base, train, validate, **OPTIONS)
+    refit = d["base_refit"]
+    assert refit["under_fitted"] and refit["shrink_pct"] > 50 and not refit["settled"]
+    assert d["verdict"].startswith("base model under-fitted") and "before attributing effects" in d["verdict"]
+    assert not any(e["significant"] for e in d["ranking"])
+    assert max(e["shrink_pct"] for e in d["ranking"]) > 10
 
 
 def test_shared_outputs_and_bad_channels():

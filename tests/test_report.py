@@ -93,11 +93,14 @@ def case(tmp_path_factory):
         "ranking": [
             {"effect": "input_delay", "where": ["lat"], "params": {"delay_lat": 0.042}, "shrink_pct": 37.25,
              "shrink_by_channel": {"p": 41.5, "phi": 30.0}, "significant": True, "p_value": 1e-4,
-             "summary": "lateral input delay 42 +- 6 ms"},
+             "summary": "lateral input delay 42 +- 6 ms", "shrink_se_pct": 4.5, "tied_with": ["actuator_lag"],
+             "lr": {"statistic": 80.0, "dof": 1, "p_value": 3.7e-19, "delta_aic": -78.0}},
             {"effect": "actuator_lag", "where": ["lon"], "params": {"tau_lon": 0.01}, "shrink_pct": 1.75,
              "shrink_by_channel": {"q": 2.0}, "significant": False, "p_value": 0.4, "summary": "lag 10 ms"},
         ],
         "verdict": "input_delay: gap shrinks 37.2 % on the validation flight",
+        "base_refit": {"joint": True, "shrink_pct": 12.34, "shrink_se_pct": 2.5, "under_fitted": True,
+                       "settled": True},
     }
     (diag / "diagnosis.json").write_text(json.dumps(diagnosis))
     matplotlib.image.imsave(diag / "residual_bands.png", rng.uniform(size=(20, 30, 3)))
@@ -225,6 +228,8 @@ def test_convergence_and_diagnosis(case):
     for entry in case["diagnosis"]["ranking"]:
         assert entry["effect"] in diag and f"<td>{entry['shrink_pct']:.1f}</td>" in diag
     assert "lateral input delay 42 +- 6 ms" in diag and "0.4321" in diag
+    assert "<td>4.5</td>" in diag and "<td>3.7e-19</td>" in diag and "<td>actuator_lag</td>" in diag
+    assert "shrinks the validation gap 12.3 +- 2.5 % (under-fitted)" in diag
     for finding in case["diagnosis"]["consistency"]:
         assert str(esc(finding["message"])) in diag
 

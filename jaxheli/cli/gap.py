@@ -65,6 +65,9 @@ def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     p.add_argument("--max-steps", type=int, default=40, help="Levenberg-Marquardt steps per candidate (default 40)")
     p.add_argument("--min-shrink", type=float, default=3.0,
                    help="smallest significant held-out shrink, %% (default 3: the blind check's noise floor)")
+    p.add_argument("--frozen-base", action="store_true",
+                   help="hold the base model's parameters fixed while fitting each effect (default: re-identify them "
+                        "jointly with it and credit it only beyond the base model re-fitted alone)")
     p.add_argument("--correct", action="store_true",
                    help="apply each flight's significant consistency findings (jaxheli check) before diagnosing")
     p.add_argument("--train-trim", type=int, default=0,
@@ -134,6 +137,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     diagnosis = diagnose(
         args.model, train, validate, outputs=outputs(args.outputs), effects=chosen, segment=args.segment,
         top=args.top, g=args.g, max_steps=args.max_steps, min_shrink=args.min_shrink, track=args.track,
+        joint=not args.frozen_base,
     )
     print(f"diagnosis of {args.model}: trained on {train.source}, validated on {validate.source} "
           f"(segment {args.segment:g} s, restart filter level {diagnosis['track']:g}; "

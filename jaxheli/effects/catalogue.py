@@ -1,10 +1,11 @@
 """The library's candidate unmodelled effects, one :class:`~jaxheli.effects.record.Effect` each, and their
 registry :data:`EFFECTS`.
 
-Each effect's parameters carry the largest magnitude that is physically plausible on a small helicopter
-(:func:`jaxheli.effects.registry.implausible`), generous on purpose (several times what the blind check
-injects); a fit that leaves its range has absorbed something other than the effect (a mismatch the base
-model carries elsewhere), so it is reported but never the verdict. Start values keep the fit away from kinks
+Each effect's parameters carry the largest magnitude that is physically plausible on a small helicopter,
+generous on purpose (several times what the blind check injects): the box every fit stays in
+(:func:`jaxheli.effects.registry.box`); a fit that ends on that bound has absorbed something other than the
+effect (a mismatch the base model carries elsewhere), so it is flagged (:func:`jaxheli.effects.registry.at_bound`)
+and never the verdict. Start values keep the fit away from kinks
 such as ``|delay| = 0``, where the gradient vanishes. Every plant term is the identity at its no-effect value,
 so effects that are absent cost nothing in accuracy.
 """
@@ -79,10 +80,21 @@ ACTUATOR_LAG = _per_axis("actuator_lag", "lag", eta_order=1, unit="s", start=0.0
 on one random axis."""
 
 
+_BIAS_BOUND = {"m/s": 3.0, "rad/s": 0.5, "rad": 0.35}
+"""Largest plausible sensor bias per unit: 3 m/s (a GPS/airspeed offset), 0.5 rad/s (an uncalibrated gyro),
+0.35 rad (20 deg of attitude)."""
+
+_DRIFT_TIME = 10.0
+"""A plausible drift reaches the plausible bias in no less than this many seconds."""
+
+
 def _channel_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
-    bias = tuple(Param(at("bias", i), f"bias_{c}", _UNITS.get(c, "-"), c, 0.0, False) for i, c in enumerate(outputs))
-    drift = tuple(Param(at("drift", i), f"drift_{c}", f"{_UNITS.get(c, '-')}/s", c, 0.0, False)
-                  for i, c in enumerate(outputs))
+    units = [_UNITS.get(c, "-") for c in outputs]
+    bounds = [_BIAS_BOUND.get(u, 1.0) for u in units]
+    bias = tuple(Param(at("bias", i), f"bias_{c}", u, c, 0.0, False, b)
+                 for i, (c, u, b) in enumerate(zip(outputs, units, bounds)))
+    drift = tuple(Param(at("drift", i), f"drift_{c}", f"{u}/s", c, 0.0, False, b / _DRIFT_TIME)
+                  for i, (c, u, b) in enumerate(zip(outputs, units, bounds)))
     return bias + drift
 
 
@@ -110,7 +122,8 @@ OUTPUT_BIAS_DRIFT = Effect(
     terms=(Term("reading", _offset, _remove_offset),),
     inject=_inject_bias_drift,
 )
-"""A constant bias and a linear drift on every output channel (the channel's units and per s; no limit):
+"""A constant bias and a linear drift on every output channel (the channel's units and per s; bias up to
+3 m/s, 0.5 rad/s or 0.35 rad, drift up to that bias per 10 s):
 ``y + bias + drift t``. Injected: bias 2-4 noise standard deviations and a drift of as much again over the
 flight, on one random channel."""
 
@@ -118,7 +131,7 @@ flight, on one random channel."""
 def _process_noise_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
     return (Param(at("gust", 0), "gust_std", "m/s", "u,v,w", 0.3, True, 5.0),
             Param(at("gust", 1), "gust_tau", "s", "u,v,w", 1.0, True, 10.0, shape=True),
-            Param(at("gust", 2), "state_noise_cut", "ln", "u,v,w", 1.0, True, shape=True))
+            Param(at("gust", 2), "state_noise_cut", "ln", "u,v,w", 1.0, True, 10.0, shape=True))
 
 
 def _inject_gusts(dice: Dice) -> Draw:
@@ -136,7 +149,7 @@ PROCESS_NOISE = Effect(
 )
 """First-order Gauss-Markov wind on u, v, w: std (m/s, plausible up to 5), correlation time (s, up to 10;
 1 s at no effect) and a cut ``c`` of the restart filter's white state noise (``track`` to ``track e^-|c|``,
-without limit: the filter-error method estimates the whole process-noise model; once the gusts explain the
+``|c|`` up to 10: the filter-error method estimates the whole process-noise model; once the gusts explain the
 wind, the filter need not follow the sensors as closely as at the base model's tuned level). No plant term:
 the wind enters every plant through ``E``; :func:`jaxheli.gap.kalman.gust_filter` reads this group.
 Injected: a flight in gusts of 0.3-0.8 m/s with 0.5-2 s correlation."""

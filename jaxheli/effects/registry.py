@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._types import Float
 from .catalogue import EFFECTS
 from .plant import no_effect
 from .record import Param as Param
@@ -24,28 +25,40 @@ def params(effect: str, outputs: tuple[str, ...]) -> tuple[Param, ...]:
     return EFFECTS.params(effect, outputs)
 
 
+def box(effect: str, outputs: tuple[str, ...]) -> tuple[Float[np.ndarray, "K"], Float[np.ndarray, "K"]]:
+    """``(lower, upper)`` of ``effect``'s parameters: ``[0, bound]`` for those acting through ``|eta|``,
+    ``[-bound, bound]`` for signed ones (:attr:`Param.bound`, the physically plausible magnitude)."""
+    ps = params(effect, outputs)
+    upper = np.array([p.bound for p in ps], dtype=np.float64)
+    return np.where([p.positive for p in ps], 0.0, -upper), upper
+
+
 def candidate_arrays(
     effects: tuple[str, ...] | list[str], outputs: tuple[str, ...], combine: bool = False,
     shape: tuple[int, int] | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(index[C, K], start[C, K])`` of the effects (or, with ``combine``, of their union as one candidate).
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(index[C, K], start[C, K], lower[C, K], upper[C, K])`` of the effects (or, with ``combine``, of their
+    union as one candidate).
 
     ``index`` holds ``eta`` slots, padded with ``E`` (a dummy slot that acts on nothing); ``start`` the
-    start values (0 in the padding). ``shape`` pads to at least ``(C, K)``, repeating the last candidate in
-    the extra rows, so that fits of different candidate sets share one compiled solver.
+    start values and ``lower``/``upper`` the box (:func:`box`), all 0 in the padding (a pinned axis).
+    ``shape`` pads to at least ``(C, K)``, repeating the last candidate in the extra rows, so that fits of
+    different candidate sets share one compiled solver.
     """
-    groups = [sum((params(e, outputs) for e in effects), ())] if combine else [params(e, outputs) for e in effects]
-    rows, width = len(groups), max(len(g) for g in groups)
+    sets = [list(effects)] if combine else [[e] for e in effects]
+    rows, width = len(sets), max(sum(len(params(e, outputs)) for e in s) for s in sets)
     if shape is not None:
         rows, width = max(rows, shape[0]), max(width, shape[1])
-    groups += [groups[-1]] * (rows - len(groups))
+    sets += [sets[-1]] * (rows - len(sets))
     pad = len(no_effect(outputs))
     index = np.full((rows, width), pad, dtype=np.int32)
-    start = np.zeros((rows, width))
-    for c, group in enumerate(groups):
+    start, lower, upper = (np.zeros((rows, width)) for _ in range(3))
+    for c, names in enumerate(sets):
+        group = sum((params(e, outputs) for e in names), ())
         index[c, : len(group)] = [p.slot for p in group]
         start[c, : len(group)] = [p.start for p in group]
-    return index, start
+        lower[c, : len(group)], upper[c, : len(group)] = np.concatenate([box(e, outputs) for e in names], axis=1)
+    return index, start, lower, upper
 
 
 def joint_shape(effects: tuple[str, ...] | list[str], outputs: tuple[str, ...], top: int) -> tuple[int, int]:
@@ -54,8 +67,13 @@ def joint_shape(effects: tuple[str, ...] | list[str], outputs: tuple[str, ...], 
     return len(widths), sum(widths[: max(top, 1)])
 
 
+Z95 = 1.959963984540054
+"""Half-width of a two-sided 95 % normal interval, in standard errors."""
+
+
 def describe(effect: str, outputs: tuple[str, ...], value: np.ndarray, stderr: np.ndarray) -> tuple[dict, list, str]:
-    """``(params, where, sentence)`` of a fitted effect: named values with standard errors and units, the
+    """``(params, where, sentence)`` of a fitted effect: named values with standard errors, 95 % intervals
+    (value +- :data:`Z95` standard errors) and units, the
     axes/channels whose parameters differ from no-effect by more than two standard errors and by at least a
     quarter of the largest change among parameters of the same unit (else the strongest one), and a
     sentence such as ``"lat input delay 42 +- 6 ms"``."""
@@ -70,19 +88,25 @@ def describe(effect: str, outputs: tuple[str, ...], value: np.ndarray, stderr: n
     largest = {u: max(size[i] for i in range(len(ps)) if ps[i].unit == u) for u in {p.unit for p in ps}}
     strong = [i for i in range(len(ps)) if z[i] > 2.0 and size[i] >= 0.25 * largest[ps[i].unit]] or [int(np.argmax(z))]
     where = list(dict.fromkeys(ps[i].where for i in strong))
-    named = {p.name: {"value": float(v), "stderr": float(s), "unit": p.unit, "where": p.where}
+    named = {p.name: {"value": float(v), "stderr": float(s), "interval": [float(v - Z95 * s), float(v + Z95 * s)],
+                      "unit": p.unit, "where": p.where}
              for p, v, s in zip(ps, shown, stderr)}
     sentence = "; ".join(_phrase(effect, ps[i], shown[i], stderr[i]) for i in strong)
     return named, where, sentence
 
 
-def implausible(effect: str, outputs: tuple[str, ...], value: np.ndarray) -> list[str]:
-    """Phrases naming the fitted parameters of ``effect`` outside their plausible range (empty if none), such
-    as ``"delay_lat 16 s > 0.5 s"``; ``value`` as fitted (``|value|`` is compared)."""
+AT_BOUND = 1e-3
+"""Distance from a bound, as a fraction of the bound, within which a fitted parameter counts as on it."""
+
+
+def at_bound(effect: str, outputs: tuple[str, ...], value: np.ndarray) -> list[str]:
+    """Phrases naming the fitted parameters of ``effect`` on (or past) the physical bound of their box
+    (:func:`box`; the no-effect end ``0`` of a ``positive`` one is not a bound), e.g. ``"delay_lat 0.5 s at
+    its bound 0.5 s"``; empty if none. ``value`` as fitted (``|value|`` is compared)."""
     ps = params(effect, outputs)
     value = np.abs(np.asarray(value, dtype=np.float64)[: len(ps)])
-    return [f"{p.name} {v:.3g} {p.unit} > {p.bound:g} {p.unit}" for p, v in zip(ps, value)
-            if not np.isfinite(v) or v > p.bound]
+    return [f"{p.name} {v:.3g} {p.unit} at its bound {p.bound:g} {p.unit}" for p, v in zip(ps, value)
+            if not np.isfinite(v) or v >= (1.0 - AT_BOUND) * p.bound]
 
 
 def evidence(effect: str, outputs: tuple[str, ...], value: np.ndarray, stderr: np.ndarray) -> float:

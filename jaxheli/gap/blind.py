@@ -24,7 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
-from .._types import Array, Float, Int
+from .._types import Array, Float
 from ..synth.excitation import Excitation
 from ..data.flight import FlightData
 from ..model import TABLE2
@@ -32,7 +32,7 @@ from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
 from ..effects import registry as fx
 from ..effects.catalogue import EFFECTS
 from ..effects.plant import no_effect
-from .fit_effect import Fit, embed, fit_candidates, score
+from .fit_effect import Candidates, Fit, embed, fit_candidates, score, with_reference
 from .predictor import Predictor, make_predictor, tune_track
 from .ranking import shrink_entries
 
@@ -102,8 +102,8 @@ def run_blind(
     outputs = DEFAULT_OUTPUTS
     injections = [sample_injection(kind, 7919 * seed + 101 * KINDS.index(kind), outputs, duration)
                   for kind, seed in trials]
-    index, start = (jnp.asarray(a) for a in fx.candidate_arrays(fx.ALL, outputs))
     theta, base = jnp.asarray(TABLE2), jnp.asarray(no_effect(outputs))
+    cand = with_reference(*fx.candidate_arrays(fx.ALL, outputs), pad=len(base))
     records = []
     for first in tqdm(range(0, len(trials), batch), desc="blind batches", unit="batch"):
         chunk = list(range(first, min(first + batch, len(trials))))
@@ -114,7 +114,7 @@ def run_blind(
         train = _stack([make_predictor(t, segment=segment, track=k) for (t, _), k in zip(flights, tracks)])
         validate = _stack([make_predictor(v, segment=segment, track=k) for (_, v), k in zip(flights, tracks)])
         truth = jnp.asarray(np.stack([injections[i].eta for i in padded]))
-        fits, gaps, segs = _fit_and_score(train, validate, truth, theta, base, index, start, max_steps)
+        fits, gaps, segs = _fit_and_score(train, validate, truth, theta, base, cand, max_steps)
         for j, i in enumerate(chunk):
             fit = jax.tree.map(lambda a: a[j], fits)
             records.append(_record(injections[i], trials[i][1], fit, np.asarray(gaps[j]), np.asarray(segs[j]),
@@ -131,15 +131,17 @@ def _stack(predictors: list[Predictor]) -> Predictor:
 @functools.partial(jax.jit, static_argnames=("max_steps",))
 def _fit_and_score(
     train: Predictor, validate: Predictor, truth: Float[Array, "F E"], theta: Float[Array, "40"],
-    base: Float[Array, "E"], index: Int[Array, "C K"], start: Float[Array, "C K"], max_steps: int,
-) -> tuple[Fit, Float[Array, "F C+2 k"], Float[Array, "F C+2 S"]]:
-    """Every flight's candidate fits on its training flight, then the validation gaps of the base model,
-    each fitted candidate and the truth (oracle), all vmapped over flights ``F``."""
+    base: Float[Array, "E"], cand: Candidates, max_steps: int,
+) -> tuple[Fit, Float[Array, "F C+1 k"], Float[Array, "F C+1 S"]]:
+    """Every flight's candidate fits on its training flight (the base model frozen; row 0 of ``cand`` the
+    reference, no effect), then the validation gaps of the reference, each fitted candidate and the truth
+    (oracle), all vmapped over flights ``F``."""
 
     def one(train, validate, eta_true):
-        fit = fit_candidates(train, theta, base, index, start, max_steps)
-        etas = jax.vmap(lambda i, z: embed(base, i, z))(index, fit.z)
-        gaps, segs = score(validate, theta, jnp.concatenate([base[None, :], etas, eta_true[None, :]], axis=0))
+        fit = fit_candidates(train, theta, base, cand, max_steps)
+        etas = jax.vmap(lambda i, z: embed(base, i, z))(cand.index, fit.z)
+        etas = jnp.concatenate([etas, eta_true[None, :]], axis=0)
+        gaps, segs = score(validate, jnp.broadcast_to(theta, (etas.shape[0], theta.shape[0])), etas)
         return fit, gaps, segs
 
     return jax.vmap(one)(train, validate, truth)
@@ -147,8 +149,7 @@ def _fit_and_score(
 
 def _record(inj: Injection, seed: int, fit, gaps, segs, min_shrink) -> dict[str, Any]:
     n = len(fx.ALL)
-    ranking = shrink_entries(list(fx.ALL), DEFAULT_OUTPUTS, fit, gaps[0], gaps[1:n + 1], segs[0],
-                             segs[1:n + 1], min_shrink)
+    ranking = shrink_entries(list(fx.ALL), DEFAULT_OUTPUTS, fit, gaps[:n + 1], segs[:n + 1], min_shrink)
     significant = [e["effect"] for e in ranking if e["significant"]]
     top = significant[0] if significant else "none"
     record = {"kind": inj.kind, "seed": int(seed), "top": top, "correct": top == inj.kind,

@@ -28,7 +28,7 @@ from ..cost import nmse
 from ..evaluate import resolve_params
 from ..data.flight import FlightData
 from ..problem import make_problem
-from ..model import G_SI, MEASURABLE
+from ..model import G_SI, MEASURABLE, PARAM_NAMES
 from ..effects import registry as fx
 from ..effects.plant import no_effect
 from .consistency import check
@@ -69,21 +69,30 @@ def effect_eta(effect: str, params: dict[str, dict[str, float]], outputs: tuple[
     return eta
 
 
+def entry_theta(entry: dict[str, Any], theta: Float[np.ndarray, "40"]) -> Float[np.ndarray, "40"]:
+    """The base parameters a ranking entry's effect was fitted with (its ``theta``, jointly re-identified), or
+    ``theta`` for an entry without them."""
+    fitted = entry.get("theta")
+    return np.asarray(theta, np.float64) if fitted is None else np.array([fitted[n] for n in PARAM_NAMES])
+
+
 @eqx.filter_jit
-def _predict(pred: Predictor, theta: Float[Array, "40"], etas: Float[Array, "C E"]) -> Float[Array, "C N k"]:
-    return jax.vmap(lambda eta: pred(theta, eta))(etas)
+def _predict(pred: Predictor, thetas: Float[Array, "C 40"], etas: Float[Array, "C E"]) -> Float[Array, "C N k"]:
+    return jax.vmap(pred)(thetas, etas)
 
 
 def predictions(
     theta: Float[np.ndarray, "40"], flight: FlightData | Predictor, entries: Sequence[dict[str, Any]], *,
     segment: float = 2.0, g: float = G_SI, track: float = TRACK,
 ) -> Float[np.ndarray, "C+1 N k"]:
-    """Predicted outputs of the base model (first) and of the base plus each ranking entry's fitted effect
-    on ``flight`` (all its channels), by the same segment-wise predictor the ranking scores with (restart
-    filter level ``track``: the diagnosis's ``track``); given a predictor, its settings hold."""
+    """Predicted outputs of the base model ``theta`` (first) and of each ranking entry's fitted effect with the
+    base parameters fitted with it (:func:`entry_theta`) on ``flight`` (all its channels), by the same
+    segment-wise predictor the ranking scores with (restart filter level ``track``: the diagnosis's
+    ``track``); given a predictor, its settings hold."""
     pred = flight if isinstance(flight, Predictor) else make_predictor(flight, segment=segment, g=g, track=track)
     etas = [no_effect(pred.outputs)] + [effect_eta(e["effect"], e["params"], pred.outputs) for e in entries]
-    return np.asarray(_predict(pred, jnp.asarray(theta), jnp.asarray(np.stack(etas))))
+    thetas = [np.asarray(theta, np.float64)] + [entry_theta(e, theta) for e in entries]
+    return np.asarray(_predict(pred, jnp.asarray(np.stack(thetas)), jnp.asarray(np.stack(etas))))
 
 
 def diagnose(
@@ -101,13 +110,15 @@ def diagnose(
 ) -> dict[str, Any]:
     """JSON-ready diagnosis of ``model`` (anything :func:`jaxheli.resolve_params` takes).
 
-    Effects are fitted on ``train`` with the base model fixed and scored on ``validate``; ``segment`` (s) is
-    the restart interval of every prediction, ``options`` (``max_steps``, ``min_shrink``, ``track``) go to
+    Effects are fitted on ``train`` jointly with the base parameters (``joint=False`` in ``options``: the base
+    model held fixed) and scored on ``validate``; ``segment`` (s) is the restart interval of every
+    prediction, ``options`` (``max_steps``, ``min_shrink``, ``track``, ``joint``, ``bounds``) go to
     :func:`~jaxheli.gap.ranking.diagnose_effects`. ``outputs`` default to :func:`shared_outputs`.
 
     Returns ``model``, ``flights``, ``outputs``, ``consistency`` (findings of both flights, each with a
     ``flight`` key), ``localisation`` (validation flight; the training flight's under ``train``),
-    ``ranking`` (best first), ``combination``, ``verdict``, ``track`` (the restart filter's level, tuned on
+    ``ranking`` (best first), ``combination``, ``base_refit`` (:func:`~jaxheli.gap.ranking.base_refit`),
+    ``verdict``, ``track`` (the restart filter's level, tuned on
     ``train`` unless ``options`` give it), ``gap_before`` (base model, per channel and
     ``total`` = channel mean) and ``gap_after`` (``best`` entry and ``combination``, same layout, or ``None``).
     """
@@ -263,17 +274,32 @@ def prepare(
 
 
 def ranking_table(diagnosis: dict[str, Any]) -> list[str]:
-    """The ranked effects as text lines: shrink on the validation flight (total and per channel), significance."""
+    """The ranked effects as text lines: shrink on the validation flight (total with its standard error, and
+    per channel), significance (``*``; ``=`` when tied with another), and first the base model re-fitted
+    alone when the diagnosis re-identified jointly (its shrink of the given base; the effects' shrinks are
+    beyond it)."""
     names = diagnosis["outputs"]
-    head = f"  {'effect':<22}{'shrink %':>9}  {'sig':<4}" + "".join(f"{n:>8}" for n in names) + "  fitted"
+    head = f"  {'effect':<22}{'shrink %':>9}{'+-':>6}  {'sig':<4}" + "".join(f"{n:>8}" for n in names) + "  fitted"
     rows = [e for e in (*diagnosis["ranking"], diagnosis["combination"]) if e]
-    lines = [head, f"  {'(base gap nmse)':<22}{diagnosis['gap_before']['total']:>9.3g}  {'':<4}"
+    lines = [head, f"  {'(base gap nmse)':<22}{diagnosis['gap_before']['total']:>9.3g}{'':>6}  {'':<4}"
              + "".join(f"{diagnosis['gap_before']['channel'][n]:>8.3g}" for n in names)]
+    refit = diagnosis.get("base_refit") or {}
+    if refit.get("joint"):
+        before, after = diagnosis["gap_before"]["channel"], refit["gap_by_channel"]
+        lines.append(f"  {'(base re-fitted)':<22}{_num(refit['shrink_pct'], '.1f'):>9}"
+                     f"{_num(refit['shrink_se_pct'], '.1f'):>6}  {'U' if refit['under_fitted'] else '':<4}"
+                     + "".join(f"{_num(_pct(before[n], after[n]), '.1f'):>8}" for n in names)
+                     + "  effects below: shrink beyond this")
     for e in rows:
         by = e["shrink_by_channel"]
-        lines.append(f"  {e['effect']:<22}{_num(e['shrink_pct'], '.1f'):>9}  {'*' if e['significant'] else '':<4}"
-                     + "".join(f"{_num(by[n], '.1f'):>8}" for n in names) + f"  {e.get('summary', '')}")
+        mark = ("=" if e.get("tied_with") else "*") if e["significant"] else ""
+        lines.append(f"  {e['effect']:<22}{_num(e['shrink_pct'], '.1f'):>9}{_num(e.get('shrink_se_pct'), '.1f'):>6}"
+                     f"  {mark:<4}" + "".join(f"{_num(by[n], '.1f'):>8}" for n in names) + f"  {e.get('summary', '')}")
     return lines
+
+
+def _pct(before: float | None, after: float | None) -> float | None:
+    return None if before is None or after is None or before == 0 else 100.0 * (before - after) / before
 
 
 def _num(value: float | None, fmt: str) -> str:

@@ -1,12 +1,18 @@
 """Fit candidate effects, batched: one vmapped optimistix Levenberg-Marquardt solve over all candidates.
 
-Every candidate frees ``K`` entries of ``eta`` (``index[C, K]``, padded with a dummy slot), warm-started
-from the base model (``eta`` at no effect, the base ``theta`` held fixed) at the effect's start values.
+Every candidate frees ``K`` entries of ``eta`` (``index[C, K]``, padded with a dummy slot), each in its
+physical box (:func:`jaxheli.effects.registry.box`), started at the effect's start values. With the base
+model frozen, the base ``theta`` stays as given; re-identified jointly (``theta_box`` given), the 40 base
+parameters are freed too, in their box, so an effect is fitted *with* the base model the user would
+re-identify, not on top of a base that already absorbed part of it. Both boxes go through the engines'
+transform (:class:`jaxheli.bounds.Bounds`: unit coordinates, the clipped point simulated, a penalty outside).
+
 The residuals are the predictor's normalised output errors on the training flight (their sum of squares
 is ``N`` times the summed per-channel gap), so the fit minimises the training gap directly. Standard
-errors are Cramer-Rao style, ``s^2 (J^T J)^+`` with ``J`` the Jacobian at the optimum and
-``s^2 = RSS / (N_res - K)``, inflated for coloured residuals by the AR(1) factor ``(1 + r1) / (1 - r1)``
-(``r1``: the residuals' lag-1 autocorrelation, averaged over channels), i.e. counting effective samples.
+errors are Cramer-Rao style, ``s^2 (J^T J)^+`` with ``J`` the Jacobian (over every free parameter, base
+ones included) at the optimum and ``s^2 = RSS / (N_res - K)``, inflated for coloured residuals by the
+AR(1) factor ``(1 + r1) / (1 - r1)`` (``r1``: the residuals' lag-1 autocorrelation, averaged over
+channels), i.e. counting effective samples ``n_eff = N_res (1 - r1) / (1 + r1)``.
 """
 
 from __future__ import annotations
@@ -15,10 +21,13 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import lineax as lx
+import numpy as np
 import optimistix as optx
 
 from .._types import Array, Float, Int
+from ..bounds import Bounds
 from ..cost import nmse
+from ..model import N_PARAMS
 from .predictor import Predictor
 
 
@@ -27,12 +36,36 @@ def embed(base: Float[Array, "E"], index: Int[Array, "K"], z: Float[Array, "K"])
     return jnp.concatenate([base, jnp.zeros(1, base.dtype)]).at[index].set(z)[:-1]
 
 
+class Candidates(eqx.Module):
+    """The candidates of one batched fit: ``eta`` slots ``index[C, K]``, start values and box (padding: the
+    dummy slot, pinned at 0). Row 0 is the reference when built by :func:`with_reference`."""
+
+    index: Int[Array, "C K"]
+    start: Float[Array, "C K"]
+    lower: Float[Array, "C K"]
+    upper: Float[Array, "C K"]
+
+
+def with_reference(index, start, lower, upper, pad: int) -> Candidates:
+    """:class:`Candidates` from :func:`~jaxheli.effects.registry.candidate_arrays`' arrays, with a first row
+    that frees no effect (every slot the dummy ``pad``): the base model fitted alone, the yardstick every
+    candidate is credited against."""
+    rows = [np.asarray(index), np.asarray(start), np.asarray(lower), np.asarray(upper)]
+    first = [np.full_like(rows[0][:1], pad)] + [np.zeros_like(a[:1]) for a in rows[1:]]
+    return Candidates(*(jnp.asarray(np.concatenate([f, a], axis=0)) for f, a in zip(first, rows)))
+
+
 class Fit(eqx.Module):
-    """Fitted candidates: values ``z[C, K]``, standard errors, training RSS, solver steps, converged flags."""
+    """Fitted candidates: effect values ``z[C, K]`` and standard errors, base parameters ``theta[C, 40]``
+    (the given ones when frozen), training RSS, effective residual count, number of effect parameters the
+    fit resolved, solver steps, converged flags."""
 
     z: Float[Array, "C K"]
     stderr: Float[Array, "C K"]
+    theta: Float[Array, "C 40"]
     rss: Float[Array, "C"]
+    n_eff: Float[Array, "C"]
+    k_active: Int[Array, "C"]
     steps: Int[Array, "C"]
     converged: Array
 
@@ -42,31 +75,49 @@ def fit_candidates(
     pred: Predictor,
     theta: Float[Array, "40"],
     base: Float[Array, "E"],
-    index: Int[Array, "C K"],
-    start: Float[Array, "C K"],
+    cand: Candidates,
     max_steps: int = 40,
+    theta_box: Bounds | None = None,
 ) -> Fit:
-    """Fit every candidate on ``pred``'s flight (vmapped LM; ``max_steps`` is static)."""
+    """Fit every candidate on ``pred``'s flight (vmapped LM; ``max_steps`` is static); with ``theta_box`` the
+    base parameters are re-identified jointly in that box (it must contain ``theta``), else held at ``theta``."""
     solver = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-8, linear_solver=lx.QR())
+    joint = theta_box is not None
 
-    def one(idx, z0):
-        def residuals(z, _):
-            return pred.residuals(theta, embed(base, idx, z))
+    def one(idx, z0, lo, hi):
+        box = Bounds(jnp.concatenate([theta_box.lower, lo]), jnp.concatenate([theta_box.upper, hi])) if joint \
+            else Bounds(lo, hi)
+        p0 = jnp.concatenate([theta, z0]) if joint else z0
 
-        sol = optx.least_squares(residuals, solver, z0, max_steps=max_steps, throw=False)
-        r0, r1 = residuals(z0, None), residuals(sol.value, None)
+        def split(u):
+            p = box.from_unit(Bounds.clip_unit(u))
+            return (p[:N_PARAMS], p[N_PARAMS:]) if joint else (theta, p)
+
+        def fit_res(u):
+            th, z = split(u)
+            return pred.residuals(th, embed(base, idx, z))
+
+        def residuals(u, _):
+            return jnp.concatenate([fit_res(u), Bounds.penalty(u)])
+
+        u0 = box.to_unit(p0)
+        sol = optx.least_squares(residuals, solver, u0, max_steps=max_steps, throw=False)
+        r0, r1 = residuals(u0, None), residuals(sol.value, None)
         better = jnp.all(jnp.isfinite(sol.value)) & (jnp.sum(r1**2) <= jnp.sum(r0**2))
-        z = jnp.where(better, sol.value, z0)
-        res = jnp.where(better, r1, r0)
-        J = jax.jacfwd(residuals)(z, None)
+        u = jnp.where(better, Bounds.clip_unit(sol.value), u0)
+        res = fit_res(u)
+        J = jax.jacfwd(fit_res)(u)
         rss = jnp.sum(res**2)
-        active = jnp.any(J != 0, axis=0)
-        dof = res.shape[0] - jnp.sum(active)
-        cov = rss / dof * _colour_factor(res.reshape(pred.measured.shape)) * jnp.linalg.pinv(J.T @ J)
-        stderr = jnp.where(active, jnp.sqrt(jnp.abs(jnp.diag(cov))), 0.0)
-        return z, stderr, rss, sol.stats["num_steps"], sol.result == optx.RESULTS.successful
+        active = jnp.any(J != 0, axis=0) & (box.width > 0)
+        colour = _colour_factor(res.reshape(pred.measured.shape))
+        cov = rss / (res.shape[0] - jnp.sum(active)) * colour * jnp.linalg.pinv(J.T @ J)
+        stderr = jnp.where(active, box.width * jnp.sqrt(jnp.abs(jnp.diag(cov))), 0.0)
+        th, z = split(u)
+        k = z0.shape[0]
+        return (z, stderr[-k:], th, rss, res.shape[0] / colour, jnp.sum(active[-k:]), sol.stats["num_steps"],
+                sol.result == optx.RESULTS.successful)
 
-    return Fit(*jax.vmap(one)(index, start))
+    return Fit(*jax.vmap(one)(cand.index, cand.start, cand.lower, cand.upper))
 
 
 def _colour_factor(res: Float[Array, "N k"]) -> Float[Array, ""]:
@@ -78,8 +129,9 @@ def _colour_factor(res: Float[Array, "N k"]) -> Float[Array, ""]:
 
 @eqx.filter_jit
 def score(
-    pred: Predictor, theta: Float[Array, "40"], etas: Float[Array, "C E"]
+    pred: Predictor, thetas: Float[Array, "C 40"], etas: Float[Array, "C E"]
 ) -> tuple[Float[Array, "C k"], Float[Array, "C S"]]:
-    """Gap per channel (:func:`jaxheli.cost.nmse`) and residual energy per restart segment of each ``eta``."""
-    y = jax.vmap(lambda eta: pred(theta, eta))(etas)
+    """Gap per channel (:func:`jaxheli.cost.nmse`) and residual energy per significance window of each
+    ``(theta, eta)`` pair."""
+    y = jax.vmap(pred)(thetas, etas)
     return nmse(y, pred.measured), pred.segment_energy(y)

@@ -7,7 +7,7 @@ channels. The predictor is the multiple-shooting simulator (:func:`jaxheli.make_
 hover model still gives bounded residuals. The solve is one ``optimistix.least_squares`` call
 (Levenberg-Marquardt or Gauss-Newton) on the free parameters in the unit box coordinates of
 :class:`jaxheli.bounds.Bounds` (each axis normalised to its bound width). Bounds: the residuals carry a
-penalty ``_PENALTY (u - clip(u))`` on the distance outside the box, so the solver overshoots a bound only
+penalty ``PENALTY (u - clip(u))`` (:meth:`~jaxheli.bounds.Bounds.penalty`) on the distance outside the box, so the solver overshoots a bound only
 slightly, and its answer is clipped into the box. Unlike a sigmoid map ``lower + width sigmoid(z)``, this
 keeps unit slope at and near a bound (a sigmoid flattens there and froze parameters that started within
 0.1 % of a bound, e.g. ``Nr`` at -10, in our tests).
@@ -39,10 +39,6 @@ Solver = Literal["lm", "gn"]
 
 _BIG = 1e3
 """Normalised residual (signal standard deviations) past which it is compressed logarithmically."""
-
-_PENALTY = 1e3
-"""Weight of the distance outside the box (unit coordinates) in the residuals."""
-
 
 def pem_residuals(problem: Problem, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch Nk"]:
     """Normalised, divergence-safe errors ``(y - meas) / std(meas)``, flattened (time-major)."""
@@ -96,7 +92,7 @@ Objective = Literal["pem", "pearson"]
 class _Boxed(eqx.Module):
     """An objective's residuals as a function of the unit coordinates ``u`` of the free axes.
 
-    ``_PENALTY (u - clip(u))`` is appended to the residuals: zero in the box, it makes the sum of squares
+    ``PENALTY (u - clip(u))`` is appended to the residuals: zero in the box, it makes the sum of squares
     rise steeply (but smoothly, C1) past a bound, so the solver may overshoot a bound only slightly and
     the answer is clipped into the box.
     """
@@ -122,7 +118,7 @@ class _Boxed(eqx.Module):
 
 def _residual(u: Array, boxed: _Boxed) -> Array:
     fit = boxed.of_outputs(boxed.problem.sim(boxed.theta(u)))
-    return jnp.concatenate([fit, _PENALTY * (u - Bounds.clip_unit(u))])
+    return jnp.concatenate([fit, Bounds.penalty(u)])
 
 
 @eqx.filter_jit

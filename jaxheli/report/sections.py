@@ -231,6 +231,14 @@ def diagnosis(diag: Diagnosis | None, results: Sequence[ResultSource]) -> Html:
         body.append(tag("p", tag("b", "Verdict: "), content["verdict"]))
     if diag.content is not None:
         body += _localisation(content.get("localisation"))
+    refit = content.get("base_refit") or {}
+    if refit.get("joint"):
+        body.append(tag("p", tag("b", "Base model re-fitted alone: "),
+                        f"shrinks the validation gap {num(refit.get('shrink_pct'), '.1f')} +- "
+                        f"{num(refit.get('shrink_se_pct'), '.1f')} % "
+                        f"({'under-fitted' if refit.get('under_fitted') else 'within noise'}"
+                        f"{'' if refit.get('settled', True) else ', still converging: no effect credited'}); "
+                        "each effect was fitted jointly with the base parameters and is credited beyond this."))
     if content.get("ranking") is not None:
         body += [tag("h3", "Ranked effects (shrink of the gap on the validation flight)"), _ranking(content["ranking"])]
     if content.get("combination"):
@@ -275,14 +283,17 @@ def _bands(bands: list[dict[str, Any]]) -> Html:
 
 
 def _ranking(ranking: list[dict[str, Any]]) -> Html:
-    head = ["rank", "effect", "where", "summary", "shrink [%]", "shrink by channel [%]", "significant", "p-value"]
+    head = ["rank", "effect", "where", "summary", "shrink [%]", "+- [%]", "shrink by channel [%]", "significant",
+            "tied with", "LR p-value", "window p-value"]
     rows = []
     for k, e in enumerate(ranking, 1):
         by_channel = ", ".join(f"{c} {num(v, '.1f')}" for c, v in (e.get("shrink_by_channel") or {}).items())
         where = e.get("where")
         rows.append([k, e.get("effect", "?"), ", ".join(map(str, where)) if isinstance(where, list) else num(where),
-                     e.get("summary") or json_view(e.get("params", {})), num(e.get("shrink_pct"), ".1f"), by_channel,
+                     e.get("summary") or json_view(e.get("params", {})), num(e.get("shrink_pct"), ".1f"),
+                     num(e.get("shrink_se_pct"), ".1f"), by_channel,
                      tag("span", num(bool(e.get("significant"))), class_="good" if e.get("significant") else "bad"),
+                     ", ".join(e.get("tied_with") or []), num((e.get("lr") or {}).get("p_value"), ".3g"),
                      num(e.get("p_value"), ".3g")])
     return table(head, rows, text_columns=4)
 
