@@ -78,6 +78,27 @@ R50_HOVER = np.array([
 R50_G = 32.2
 """Gravity in ft/s^2, the unit system of :data:`R50_HOVER`."""
 
+FOOT = 0.3048
+"""Metres per foot."""
+
+_LENGTH_POWER = {"Xa": 1, "Yb": 1, "Za": 1, "Zb": 1, "Zr": 1, "Yped": 1, "Zcol": 1,
+                 "Lu": -1, "Lv": -1, "Lw": -1, "Mu": -1, "Mv": -1, "Mw": -1, "Nv": -1, "Nw": -1}
+"""Power of length in each parameter's unit (speed derivatives of angular rates per unit speed, -1; speed
+derivatives per angle, rate or stick, +1); the others carry none."""
+
+
+def feet_to_si(theta: Float[np.ndarray, "40"]) -> Float[np.ndarray, "40"]:
+    """A feet-based parameter set (velocities in ft/s) in SI units (m/s): each parameter times
+    ``FOOT ** power`` (:data:`_LENGTH_POWER`). The model in SI is the feet model seen through the state
+    scaling ``u, v, w -> FOOT u, FOOT v, FOOT w`` (with ``g`` scaled alike)."""
+    scale = np.array([FOOT ** _LENGTH_POWER.get(n, 0) for n in PARAM_NAMES])
+    return np.asarray(theta, dtype=np.float64) * scale
+
+
+R50_SI = feet_to_si(R50_HOVER)
+"""Mettler's Yamaha R-50 hover model in SI units (m/s; use with the default ``g``). Outside the authors' TREX
+box in ``Mu``, ``Nv`` and ``Nw`` (a larger, heavier helicopter)."""
+
 
 def params_dict(theta: Float[np.ndarray, "40"]) -> dict[str, float]:
     """Name one parameter vector: ``{name: value}`` in :data:`PARAM_NAMES` order."""

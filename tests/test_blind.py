@@ -4,7 +4,11 @@ import numpy as np
 import pytest
 
 from jaxheli.effects import plant as augmented
-from jaxheli.gap.blind import KINDS, blind_flights, markdown, run_blind, sample_injection, summarise
+from jaxheli.gap.blind import (
+    BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, blind_flights, markdown, run_blind, sample_injection, scenario,
+    summarise,
+)
+from jaxheli.model import R50_SI, TABLE2
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS
 
 LAY = augmented.layout(DEFAULT_OUTPUTS)
@@ -30,39 +34,68 @@ def test_injections_are_reproducible_single_effects_in_range(kind):
     assert not np.array_equal(sample_injection(kind, 6).eta, a.eta) or kind == "none"
 
 
+def test_strength_scales_the_size_not_the_time_constant_and_stays_inside_the_box():
+    weak, strong = sample_injection("rotor_speed_coupling", 5, strength=0.5), sample_injection(
+        "rotor_speed_coupling", 5, strength=3.0)
+    gain, tau = LAY["rotor"].start, LAY["rotor"].start + 1
+    assert strong.eta[gain] == pytest.approx(6 * weak.eta[gain]) and strong.eta[tau] == weak.eta[tau]
+    assert strong.value == strong.eta[gain]
+    saturation = sample_injection("control_saturation", 5, strength=3.0)
+    assert np.max(np.abs(saturation.eta[LAY["sat"]])) <= 0.9 * 100.0
+    gusts = sample_injection("process_noise", 5, strength=2.0)
+    assert gusts.gust == pytest.approx(2 * sample_injection("process_noise", 5).gust)
+
+
+def test_scenarios_cover_every_combination_and_the_box_holds_every_truth():
+    seen = {(w.truth, w.style, w.noise, w.strength) for w in map(scenario, range(96))}
+    assert len(seen) == len(TRUTHS) * len(STYLES) * len(NOISES) * len(STRENGTHS) == 96
+    lower, upper = BOX
+    for seed in range(96):
+        w = scenario(seed)
+        reference = TABLE2 if w.truth.startswith("table2") else R50_SI
+        ratio = np.divide(w.theta, reference, out=np.ones(40), where=reference != 0)
+        assert np.all((0.7 <= ratio) & (ratio <= 1.3)) and np.all(w.theta[reference == 0] == 0)
+        assert np.all((lower <= w.theta) & (w.theta <= upper)), seed
+    np.testing.assert_array_equal(scenario(5).theta, scenario(5).theta)
+
+
 def test_summary_arithmetic_and_table():
     records = [
-        {"kind": "input_delay", "top": "input_delay", "correct": True, "magnitude_error": 0.1, "shrink_pct": 40.0,
-         "oracle_shrink_pct": 50.0},
-        {"kind": "input_delay", "top": "actuator_lag", "correct": False, "magnitude_error": 0.3, "shrink_pct": 45.0,
-         "oracle_shrink_pct": 50.0},
-        {"kind": "input_delay", "top": "none", "correct": False, "magnitude_error": 0.5, "shrink_pct": 1.0,
-         "oracle_shrink_pct": 4.0},
+        {"kind": "input_delay", "top": "input_delay", "correct": True, "in_tie": True, "magnitude_error": 0.1,
+         "shrink_pct": 40.0, "oracle_shrink_pct": 50.0},
+        {"kind": "input_delay", "top": "actuator_lag", "correct": False, "in_tie": True, "magnitude_error": 0.3,
+         "shrink_pct": 45.0, "oracle_shrink_pct": 50.0},
+        {"kind": "input_delay", "top": "none", "correct": False, "in_tie": False, "magnitude_error": 0.5,
+         "shrink_pct": 1.0, "oracle_shrink_pct": 4.0},
         {"kind": "none", "top": "none", "correct": True},
         {"kind": "none", "top": "none", "correct": True},
         {"kind": "none", "top": "process_noise", "correct": False},
     ]
     s = summarise(records)
     row = s["kinds"]["input_delay"]
-    assert row["top1_pct"] == pytest.approx(100 / 3) and row["magnitude_error_median"] == pytest.approx(0.3)
-    assert row["shrink_vs_oracle_pct"] == pytest.approx(80.0)
+    assert row["top1_pct"] == pytest.approx(100 / 3) and row["in_tie_pct"] == pytest.approx(200 / 3)
     assert row["detectable_trials"] == 2 and row["top1_detectable_pct"] == 50.0  # the 4 % trial is below 10 %
+    assert row["in_tie_detectable_pct"] == 100.0
+    assert row["magnitude_error_median"] == pytest.approx(0.2) and row["shrink_vs_oracle_pct"] == pytest.approx(85.0)
     assert s["false_positive_pct"] == pytest.approx(100 / 3)
-    assert "| input_delay | 3 | 33 | 2, 50 | 30.0 % | 80.0 |" in markdown(s)
+    assert "| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 85.0 |" in markdown(s)
 
 
 def test_validation_flight_differs_from_training_flight():
-    train, validate = blind_flights(sample_injection("input_delay", 1), 1, duration=12.0)
+    where = scenario(1)
+    train, validate = blind_flights(sample_injection("input_delay", 1), 1, where, duration=12.0)
     assert train.n_samples == validate.n_samples == 241
     assert not np.allclose(train.inputs, validate.inputs)
     assert train.metadata["effect"] == validate.metadata["effect"]
 
 
-def test_small_blind_run_attributes_delay_and_clears_control():
-    records = run_blind([("input_delay", 0), ("none", 0)], duration=20.0, max_steps=15, batch=2)
-    delay, control = records
-    assert delay["top"] == "input_delay" and delay["correct"]
-    assert delay["magnitude_error"] < 0.15
-    assert delay["shrink_pct"] > 0.8 * delay["oracle_shrink_pct"]
+def test_small_blind_run_attributes_saturation_and_clears_control():
+    """Identified base (PEM on the contaminated flight), joint diagnosis: a lat saturation at 0.15 stick is
+    named with its size, the control flight is cleared."""
+    records = run_blind([("control_saturation", 72), ("none", 72)], duration=20.0, max_steps=15, pem_steps=100)
+    saturation, control = records
+    assert saturation["truth"] == "table2" and saturation["strength"] == 3.0 and saturation["base"]["method"] == "pem"
+    assert saturation["top"] == "control_saturation" and saturation["correct"] and saturation["in_tie"]
+    assert saturation["magnitude_error"] < 0.25 and saturation["oracle_shrink_pct"] > 10
     assert control["top"] == "none" and control["correct"]
     assert all(len(r["ranking"]) == 8 for r in records)

@@ -150,17 +150,18 @@ def test_joint_reidentification_finds_the_delay_and_credits_it_beyond_the_refitt
 
 
 def test_an_under_fitted_base_model_is_named_not_an_effect():
-    """The failure mode: a model identified with 3 PEM steps, flights with no effect. Re-fitted alone it is
-    still descending, and every candidate's extra freedom buys more of that descent (shrinks beyond it well
-    over the 3 % floor); the diagnosis says the base is under-fitted and credits no effect."""
+    """The failure mode: a model identified with 3 PEM steps, flights with no effect. On the training flight
+    extra freedom buys a "significant" likelihood ratio; the diagnosis says the base is under-fitted and
+    credits no effect."""
     train, validate = _flight(0.0, 3, 0.2), _flight(0.0, 4, 0.25)
     base = pem(train, max_steps=3, outputs=OUT).theta
     d = diagnose(base, train, validate, **OPTIONS)
     refit = d["base_refit"]
-    assert refit["under_fitted"] and refit["shrink_pct"] > 50 and not refit["settled"]
-    assert d["verdict"].startswith("base model under-fitted") and "before attributing effects" in d["verdict"]
+    assert refit["under_fitted"] and refit["shrink_pct"] > 50
+    assert d["verdict"].startswith("base model under-fitted")
+    assert d["verdict"].endswith(("no significant effect", "before attributing effects"))
     assert not any(e["significant"] for e in d["ranking"])
-    assert max(e["shrink_pct"] for e in d["ranking"]) > 10
+    assert min(e["lr"]["p_value"] for e in d["ranking"]) < 1e-3  # the training likelihood alone would claim one
 
 
 def test_shared_outputs_and_bad_channels():

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from jaxheli.model import (
-    LOWER, N_PARAMS, PARAM_NAMES, PINNED, R50_G, R50_HOVER, TABLE2, UPPER,
+    FOOT, LOWER, N_PARAMS, PARAM_NAMES, PINNED, R50_G, R50_HOVER, R50_SI, STATE_NAMES, TABLE2, UPPER,
     build_ab, output_matrix, params_array, params_dict,
 )
 
@@ -95,3 +95,14 @@ def test_bad_shapes_and_names_raise():
         output_matrix(("p", "altitude"))
     with pytest.raises(ValueError, match="unknown parameter names"):
         params_array({"Xq": 1.0}, base=TABLE2)
+
+
+def test_r50_in_si_is_the_feet_model_under_a_velocity_scaling():
+    """``A_si = T A_ft T^-1``, ``B_si = T B_ft`` with ``T`` scaling u, v, w by 0.3048 (g in ft/s^2 scaled alike)."""
+    a_ft, b_ft = (np.asarray(m) for m in build_ab(R50_HOVER, R50_G))
+    a_si, b_si = (np.asarray(m) for m in build_ab(R50_SI, R50_G * FOOT))
+    T = np.diag([FOOT if n in ("u", "v", "w") else 1.0 for n in STATE_NAMES])
+    np.testing.assert_allclose(a_si, T @ a_ft @ np.linalg.inv(T), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(b_si, T @ b_ft, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(np.sort_complex(np.linalg.eigvals(a_si)), np.sort_complex(np.linalg.eigvals(a_ft)),
+                               rtol=1e-9, atol=1e-9)

@@ -85,7 +85,9 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     p.add_argument("--seeds", type=int, default=2, help="trials per kind (default 2; the Done-when asks 20)")
     p.add_argument("--duration", type=float, default=30.0, help="flight length, s (default 30)")
     p.add_argument("--dt", type=float, default=0.05, help="sample time, s (default 0.05)")
-    p.add_argument("--max-steps", type=int, default=20, help="LM steps per candidate fit (default 20)")
+    p.add_argument("--max-steps", type=int, default=15, help="LM steps per candidate fit (default 15)")
+    p.add_argument("--pem-steps", type=int, default=100,
+                   help="PEM steps identifying each trial's base model on its training flight (default 100)")
     p.add_argument("--out", default="jaxheli-blind", help="output folder (blind.json, blind.md)")
     p.set_defaults(func=_cmd_blind)
     return p
@@ -152,7 +154,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
 def _cmd_blind(args: argparse.Namespace) -> int:
     summary = run_benchmark(args.kinds, args.seeds, args.out, duration=args.duration, dt=args.dt,
-                            max_steps=args.max_steps)
+                            max_steps=args.max_steps, pem_steps=args.pem_steps)
     print(markdown(summary))
     print(f"runtime {summary['runtime_s']:.0f} s; wrote {Path(args.out) / 'blind.json'} and blind.md")
     return 0
