@@ -1,11 +1,12 @@
 """Blind benchmark of the effect diagnosis: every effect kind plus the effect-free control, N seeds each.
 
-Writes ``OUT/blind.json`` (per-trial records and the summary) and ``OUT/blind.md`` (the table: top-1
-attribution %, median magnitude error, median shrink vs the oracle per kind, false-positive %). Usage::
+Each trial's base model is identified by PEM on its contaminated training flight (never the truth); the
+scenario (truth model, pilot style, noise, effect strength) cycles with the seed (:func:`jaxheli.gap.blind.
+scenario`). Writes ``OUT/blind.json`` (per-trial records and the summary) and ``OUT/blind.md`` (per kind:
+top-1 and in-tie-set %, detectable trials, median magnitude error, median shrink vs the oracle; false-positive
+%), both after every trial. Usage::
 
-    python benchmarks/blind_diagnosis.py [--seeds 20] [--kinds input_delay none ...] [--out results/blind]
-
-The default (2 seeds) fits a 2-core box; the Done-when of issue 4 asks ``--seeds 20``.
+    python benchmarks/blind_diagnosis.py [--seeds 20] [--kinds input_delay none ...] [--pem-steps 100] [--out results/blind]
 """
 
 from __future__ import annotations

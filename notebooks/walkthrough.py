@@ -263,9 +263,9 @@ summary["diagnosis"] = {k: diagnosis[k] for k in ("verdict", "ranking", "base_re
 
 # %% [markdown]
 # The top effect names the input and its size: a saturation on `lon`, the one hidden in the flights. Its
-# fitted limit can stay looser than the true 0.15 stick: the identification, which had no saturation to
+# fitted limit is near the true 0.15 stick but not on it: the identification, which had no saturation to
 # fit, lowered the model's longitudinal control power to match the clipped responses half-way, and the joint
-# re-fit trades the two against each other on one training flight. On real data the same ranking tells which physics to add to the model (or which sensor to fix)
+# re-fit trades control power and limit against each other on one training flight. On real data the same ranking tells which physics to add to the model (or which sensor to fix)
 # before the next identification.
 #
 # ## 7. The report
