@@ -244,24 +244,6 @@ def plot_before_after(
     return _save(fig, path)
 
 
-def prepare(
-    flight: FlightData, *, correct_data: bool = False, trim_samples: int = 0, lowpass_hz: float | None = None,
-    dt: float | None = None,
-) -> FlightData:
-    """A flight ready for diagnosis: ends trimmed, significant consistency findings applied, low-passed,
-    resampled (each step optional, in that order, logged in ``metadata["preprocessing"]``)."""
-    from ..data.preprocess import lowpass, resample, trim
-    from .consistency import correct
-
-    if trim_samples:
-        flight = trim(flight, drop_samples=trim_samples)
-    if correct_data:
-        flight = correct(flight, check(flight))
-    if lowpass_hz:
-        flight = lowpass(flight, lowpass_hz)
-    return resample(flight, dt) if dt else flight
-
-
 def ranking_table(diagnosis: dict[str, Any]) -> list[str]:
     """The ranked effects as text lines: shrink on the validation flight (total and per channel), significance."""
     names = diagnosis["outputs"]
