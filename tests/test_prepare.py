@@ -29,14 +29,15 @@ def test_prepare_and_identify_reproduce_the_paper_training_flight(shared_data, t
     expected, findings = training_flight(load(source))
     flight = load(prepared)
     _same_flight(flight, expected)
-    assert [s["step"] for s in flight.metadata["preprocessing"]] == [s["step"] for s in expected.metadata["preprocessing"]]
+    steps = [s["step"] for s in flight.metadata["preprocessing"]]
+    assert steps == [s["step"] for s in expected.metadata["preprocessing"]]
     assert [f["kind"] for f in flight.metadata["consistency"]] == [f.kind for f in findings]
     out = tmp_path / "fit"
     assert main(["identify", "--method", "iwo", "--iterations", "1", "--train", str(prepared), "--outputs",
                  "p,q,phi,theta", "--out", str(out)]) == 0
     _same_flight(load(out / "train_flight.npz"), expected)
-    steps = json.loads((out / "result.json").read_text())["provenance"]["train"]["preprocessing"]
-    assert [s["step"] for s in steps] == ["trim", "consistency.correct", "lowpass"]
+    recorded = json.loads((out / "result.json").read_text())["provenance"]["train"]["preprocessing"]
+    assert [s["step"] for s in recorded] == steps == ["trim", "consistency.correct", "lowpass"]
 
 
 @pytest.fixture(scope="module")
