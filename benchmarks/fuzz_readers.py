@@ -172,11 +172,13 @@ def _digest(flight) -> str:
 
 
 def _read(path: str) -> dict:
-    """Load one file as the CLI does; the outcome as a JSON-ready dict."""
+    """Load one file as the CLI does (logs with ``--missing-inputs zero``, so that a log without sticks still
+    exercises the whole reader); the outcome as a JSON-ready dict."""
     import jaxheli
 
+    options = {"missing_inputs": "zero"} if Path(path).suffix in (".px4log", ".bin", ".ulg") else {}
     try:
-        flight = jaxheli.load(path)
+        flight = jaxheli.load(path, **options)
     except (jaxheli.FlightDataError, FileNotFoundError) as exc:
         return {"outcome": "error", "type": type(exc).__name__, "message": str(exc)[:300],
                 "one_line": "\n" not in str(exc)}
