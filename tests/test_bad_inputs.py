@@ -198,6 +198,7 @@ def test_all_zero_csv_channel_left_out_with_a_note(tmp_path, capsys, flight):
     path = _csv(tmp_path / "flat.csv", flight.replace(outputs=zeroed))
     loaded = load(path)
     assert loaded.metadata["warnings"] == ["channel(s) u constant: left out of the default channel set"]
+    assert load(save_npz(loaded, tmp_path / "flat.npz")).metadata["warnings"] == loaded.metadata["warnings"]
     capsys.readouterr()
     scores = tmp_path / "scores.json"
     assert main(["evaluate", "--model", "table2", "--data", str(path), "--x0", "zero", "--out", str(scores)]) == 0

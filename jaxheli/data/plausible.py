@@ -32,12 +32,13 @@ MIN_SAMPLES = 10
 
 
 def add_warnings(flight: FlightData, warnings: list[str]) -> FlightData:
-    """``flight`` with ``warnings`` appended to ``metadata["warnings"]`` (itself when there are none)."""
-    if not warnings:
+    """``flight`` with those of ``warnings`` it does not carry yet appended to ``metadata["warnings"]`` (a flight
+    read back from an NPZ keeps its warnings once); itself when nothing is new."""
+    known = flight.metadata.get("warnings", [])
+    new = [w for w in dict.fromkeys(warnings) if w not in known]
+    if not new:
         return flight
-    meta = dict(flight.metadata)
-    meta["warnings"] = [*meta.get("warnings", []), *warnings]
-    return flight.replace(metadata=meta)
+    return flight.replace(metadata={**flight.metadata, "warnings": [*known, *new]})
 
 
 def check_plausible(flight: FlightData, strict: bool = True) -> FlightData:
