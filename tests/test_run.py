@@ -66,6 +66,8 @@ def test_killed_run_resumes_bitwise(tmp_path, monkeypatch):
         minimize(IWO50, traced_bowl, jax.random.key(5), chunk=20, progress=False, checkpoint=path, resume=True)
     assert json.loads((tmp_path / "iwo.eqx.json").read_text())["iteration"] == 40
     assert not (tmp_path / "iwo.eqx.tmp").exists()
+    assert run._verified(path)[0]["iteration"] == 40  # the checkpoint left behind is whole (checksum holds)
+    (tmp_path / "iwo.eqx.tmp").write_bytes(b"torn")  # as if killed in the middle of the next write
 
     monkeypatch.setattr(run, "_save", save)
     monkeypatch.setattr(run, "_chunk", lambda *a: chunks.append(a[3]) or chunk(*a))
