@@ -45,6 +45,7 @@ class Seed:
     data: bytes
     fmt: str
     boundaries: frozenset[int]
+    tags: tuple[int, ...]
 
 
 def seeds(data_dir: Path, work: Path, heavy: bool = False) -> list[Seed]:
@@ -86,7 +87,18 @@ def seeds(data_dir: Path, work: Path, heavy: bool = False) -> list[Seed]:
 def _seed(name: str, data: bytes) -> Seed:
     fmt = Path(name).suffix.lower().lstrip(".")
     fmt = "log" if fmt in ("px4log", "bin") else fmt
-    return Seed(name, data, fmt, frozenset(_boundaries(fmt, data)))
+    return Seed(name, data, fmt, frozenset(_boundaries(fmt, data)), _tag_guesses(data) if fmt == "mat" else ())
+
+
+def _tag_guesses(data: bytes) -> tuple[int, ...]:
+    """8-aligned offsets of an uncompressed .mat that look like element tags: a known data type in the low
+    half-word with a small-element size (1..4) in the high one, or a known type with a size inside the file."""
+    words = np.frombuffer(data[128: 128 + (len(data) - 128) // 8 * 8], dtype="<u4").reshape(-1, 2)
+    kind, size = words[:, 0] & 0xFFFF, words[:, 0] >> 16
+    known = np.isin(kind, [1, 2, 3, 4, 5, 6, 7, 9, 12, 13, 14, 15, 16, 17, 18])
+    small = known & (size >= 1) & (size <= 4)
+    full = known & (size == 0) & (words[:, 1] < len(data))
+    return tuple(int(i) for i in 128 + 8 * np.flatnonzero(small | full))
 
 
 def _boundaries(fmt: str, data: bytes) -> list[int]:
@@ -137,8 +149,9 @@ def mutate(seed: Seed, rng: np.random.Generator) -> tuple[str, bytes]:
             data[i] ^= 1 << int(rng.integers(8))
     elif kind == "byte":
         data[at] = int(rng.integers(256))
-    elif kind == "tag":  # the type byte of an 8-aligned word past a .mat header: often an element tag
-        data[max(128, at - at % 8) % n] = int(rng.integers(256))
+    elif kind == "tag":  # the type byte of a (likely) element tag of an uncompressed .mat, else an aligned byte
+        where = seed.tags[rng.integers(len(seed.tags))] if seed.tags else max(128, at - at % 8) % n
+        data[where] = int(rng.integers(256))
     elif kind == "int":
         at -= at % 4
         data[at: at + 4] = _WORDS[rng.integers(len(_WORDS))]
