@@ -91,14 +91,21 @@ def _seed(name: str, data: bytes) -> Seed:
 
 
 def _tag_guesses(data: bytes) -> tuple[int, ...]:
-    """8-aligned offsets of an uncompressed .mat that look like element tags: a known data type in the low
-    half-word with a small-element size (1..4) in the high one, or a known type with a size inside the file."""
-    words = np.frombuffer(data[128: 128 + (len(data) - 128) // 8 * 8], dtype="<u4").reshape(-1, 2)
-    kind, size = words[:, 0] & 0xFFFF, words[:, 0] >> 16
-    known = np.isin(kind, [1, 2, 3, 4, 5, 6, 7, 9, 12, 13, 14, 15, 16, 17, 18])
-    small = known & (size >= 1) & (size <= 4)
-    full = known & (size == 0) & (words[:, 1] < len(data))
-    return tuple(int(i) for i in 128 + 8 * np.flatnonzero(small | full))
+    """8-aligned offsets inside the uncompressed variables of a .mat that look like element tags: a known
+    data type in the low half-word with a small-element size (1..4) in the high one, or a known type with a
+    size inside the file."""
+    found, pos = [], 128
+    while pos + 8 <= len(data):
+        kind, size = np.frombuffer(data[pos: pos + 8], dtype="<u4")
+        end = min(len(data), pos + 8 + int(size))
+        if kind == 14:
+            words = np.frombuffer(data[pos: pos + (end - pos) // 8 * 8], dtype="<u4").reshape(-1, 2)
+            low, high = words[:, 0] & 0xFFFF, words[:, 0] >> 16
+            known = np.isin(low, [1, 2, 3, 4, 5, 6, 7, 9, 12, 13, 14, 15, 16, 17, 18])
+            tag = known & (((high >= 1) & (high <= 4)) | ((high == 0) & (words[:, 1] < len(data))))
+            found += [pos + 8 * int(i) for i in np.flatnonzero(tag)]
+        pos = pos + 8 + int(size)
+    return tuple(found)
 
 
 def _boundaries(fmt: str, data: bytes) -> list[int]:
@@ -137,9 +144,9 @@ def _log_ends(data: bytes) -> list[int]:
     return ends
 
 
-def mutate(seed: Seed, rng: np.random.Generator) -> tuple[str, bytes]:
-    """One random mutation of ``seed``: ``(kind, bytes)``."""
-    kinds = [k for k in KINDS if k != "cell" or seed.fmt == "csv"]
+def mutate(seed: Seed, rng: np.random.Generator, kinds: tuple[str, ...] = KINDS) -> tuple[str, bytes]:
+    """One random mutation of ``seed`` of one of ``kinds``: ``(kind, bytes)``."""
+    kinds = [k for k in kinds if k != "cell" or seed.fmt == "csv"]
     kind = kinds[rng.integers(len(kinds))]
     data = bytearray(seed.data)
     n = len(data)
@@ -254,8 +261,10 @@ class _Worker:
         self.proc.stdout.close()
 
 
-def campaign(seed_files: list[Seed], mutations: int, seed: int, work: Path, timeout: float = _TIMEOUT_S) -> dict:
-    """Run ``mutations`` mutated reads (seeds in turn) in one worker; the tally and every notable case."""
+def campaign(seed_files: list[Seed], mutations: int, seed: int, work: Path, timeout: float = _TIMEOUT_S,
+             kinds: tuple[str, ...] = KINDS) -> dict:
+    """Run ``mutations`` mutated reads (seeds in turn, mutations of ``kinds``) in one worker; the tally and
+    every notable case."""
     rng = np.random.default_rng(seed)
     worker_proc = _Worker()
     baseline = {}
@@ -267,7 +276,7 @@ def campaign(seed_files: list[Seed], mutations: int, seed: int, work: Path, time
     t0 = time.perf_counter()
     for i in range(mutations):
         s = seed_files[i % len(seed_files)]
-        kind, data = mutate(s, rng)
+        kind, data = mutate(s, rng, kinds)
         path = work / f"m{i:05d}-{s.name}"
         path.write_bytes(data)
         res = worker_proc.read(path, timeout)
