@@ -97,6 +97,13 @@ def test_npz_error_names_the_path_read(tmp_path, flight):
         load(path)
 
 
+def test_implausible_npz_names_the_path_read(tmp_path, flight):
+    path = tmp_path / "read_me.npz"
+    save_npz(flight.replace(source="somewhere/else.csv", time=flight.time * 200.0), path)
+    with pytest.raises(FlightDataError, match=r"^\S*read_me\.npz: field 'time': sample time 10 s"):
+        load(path)
+
+
 def test_iddata_ts_string_names_file_and_field(tmp_path, flight):
     path = tmp_path / "ts.mat"
     scipy.io.savemat(path, {"exp": {"OutputData": flight.outputs, "InputData": flight.inputs, "Ts": "0.02"}})

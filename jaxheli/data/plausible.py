@@ -41,13 +41,15 @@ def add_warnings(flight: FlightData, warnings: list[str]) -> FlightData:
     return flight.replace(metadata={**flight.metadata, "warnings": [*known, *new]})
 
 
-def check_plausible(flight: FlightData, strict: bool = True) -> FlightData:
-    """``flight`` checked (module docstring): raises on the first implausible finding when ``strict``,
-    otherwise returns it with every finding, and the constant-channel notice, in ``metadata["warnings"]``."""
+def check_plausible(flight: FlightData, strict: bool = True, where: str | None = None) -> FlightData:
+    """``flight`` checked (module docstring): raises on the first implausible finding when ``strict`` (the
+    message starts with ``where``, default the flight's source), otherwise returns it with every finding, and
+    the constant-channel notice, in ``metadata["warnings"]``."""
     errors = [*_time_problems(flight), *_range_problems(flight)]
     if errors and strict:
         more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
-        raise FlightDataError(f"{flight.source}: {errors[0]}{more}; pass strict=False (--no-strict) to load it anyway")
+        raise FlightDataError(f"{where or flight.source}: {errors[0]}{more}; pass strict=False (--no-strict) to "
+                              f"load it anyway")
     flat = constant_outputs(flight)
     notes = [f"channel(s) {', '.join(flat)} constant: left out of the default channel set"] if flat else []
     return add_warnings(flight, errors + notes)

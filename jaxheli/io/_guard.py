@@ -60,7 +60,7 @@ def guarded(fmt: str) -> Callable[[Callable[..., FlightData]], Callable[..., Fli
                     f"{path}: the {fmt} reader failed: {type(exc).__name__}: {text}{f' ({said})' if said else ''}"
                 ) from exc
             said = _summary(chatter.getvalue())
-            return check_plausible(add_warnings(flight, [said] if said else []), strict=strict)
+            return check_plausible(add_warnings(flight, [said] if said else []), strict=strict, where=str(path))
 
         return guarded_read
 
