@@ -24,9 +24,9 @@ def test_evaluate_every_shared_px4log(shared_data, capsys, name):
     assert "cost (paper Eq. 7)" in captured.out
 
 
-def test_identify_on_the_px4log_flight(shared_data, capsys, tmp_path):
-    """The quadrotor flight (the other two logs take the same path; each identify compiles ~40 s)."""
-    _run(capsys, ["identify", "--method", "iwo", "--iterations", "1", "--train", str(shared_data / "px4logs" / LOGS[2]),
+@pytest.mark.parametrize("name", LOGS)
+def test_identify_every_shared_px4log(shared_data, capsys, tmp_path, name):
+    _run(capsys, ["identify", "--method", "iwo", "--iterations", "1", "--train", str(shared_data / "px4logs" / name),
                   "--out", str(tmp_path)])
     assert (tmp_path / "result.json").is_file()
 
