@@ -70,6 +70,17 @@ def _authors_outputs(flight_a_raw: jaxheli.FlightData) -> dict[str, dict[str, di
     return out
 
 
+def training_flight(raw_a: jaxheli.FlightData, lowpass_hz: float = 3.0, consistency: str = "correct"):
+    """Flight A as trained on: 50 samples dropped at each end, the consistency findings applied (unless
+    ``consistency="none"``), low-passed at ``lowpass_hz``; and the findings. ``jaxheli prepare FILE --trim 50
+    --correct --lowpass 3`` writes the same flight (tests/test_prepare.py)."""
+    train = trim(raw_a, drop_samples=50)
+    findings = check(train)
+    if consistency == "correct":
+        train = correct(train, findings)
+    return lowpass(train, lowpass_hz), findings
+
+
 def _row(block: dict) -> str:
     return " | ".join(f"{block['pearson'][c]:.4f}" for c in CHANNELS) + " | " + " | ".join(
         f"{block['tic'][c]:.3f}" for c in CHANNELS
@@ -100,11 +111,7 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
 
     raw_a = jaxheli.load(data_file("trex550/Data_graphready.mat"))
-    train = trim(raw_a, drop_samples=50)
-    findings = check(train)
-    if args.consistency == "correct":
-        train = correct(train, findings)
-    train = lowpass(train, args.lowpass)
+    train, findings = training_flight(raw_a, args.lowpass, args.consistency)
     score_a = correct(raw_a, findings) if args.consistency == "correct" else raw_a  # the authors' samples
     flight_c = jaxheli.load(data_file("trex550/ppr_data.mat"))
     outputs = tuple(args.outputs.split(","))

@@ -22,6 +22,8 @@ from .identify import IdentificationResult as IdentificationResult, identify as 
 from .sim.initial_state import estimate_x0 as estimate_x0
 from .io import DEFAULT_PX4 as DEFAULT_PX4, DEFAULT_ULOG as DEFAULT_ULOG, load as load, load_ulog as load_ulog
 from .io import save_csv as save_csv, save_npz as save_npz
+from .data.plausible import check_plausible as check_plausible
+from .gap.prepare import prepare as prepare
 from .model import (
     G_SI as G_SI,
     INPUT_NAMES as INPUT_NAMES,

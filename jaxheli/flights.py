@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from .data.flight import FlightData
 from .io import load
@@ -12,7 +13,7 @@ DEFAULT_DATA = "default"
 """Name of the embedded synthetic flight (generated on the fly, see :func:`jaxheli.default_flight`)."""
 
 
-def load_flight(spec: str | Path) -> FlightData:
+def load_flight(spec: str | Path, **options: Any) -> FlightData:
     """The flight ``spec`` names: :func:`jaxheli.default_flight` for :data:`DEFAULT_DATA`, else the file
-    :func:`jaxheli.load` reads (``FileNotFoundError`` when there is none)."""
-    return default_flight() if spec == DEFAULT_DATA else load(spec)
+    :func:`jaxheli.load` reads with ``options`` (``FileNotFoundError`` when there is none)."""
+    return default_flight() if spec == DEFAULT_DATA else load(spec, **options)

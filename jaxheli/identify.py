@@ -17,7 +17,7 @@ import numpy as np
 import scipy.stats
 
 from ._types import Float
-from .data.flight import FlightData, default_outputs
+from .data.flight import FlightData, constant_outputs, default_outputs
 from .evaluate import evaluate
 from .model import G_SI, LOWER, PARAM_NAMES, UPPER
 from .optim.ga import GA
@@ -221,7 +221,8 @@ def validation_block(
                                              "segment": problem.settings.segment}
     else:
         outputs = tuple(problem)
-    chans = tuple(c for c in outputs if c in flight.output_names) or default_outputs(flight)
+    flat = constant_outputs(flight)
+    chans = tuple(c for c in outputs if c in flight.output_names and c not in flat) or default_outputs(flight)
     held_out = make_problem(flight, outputs=chans, **options)
     block = evaluate(params, held_out, x0="estimate")
     block["zero_initial_state"] = evaluate(params, held_out, x0="zero")

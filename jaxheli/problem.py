@@ -22,7 +22,7 @@ import numpy as np
 
 from ._types import Array, Float
 from .bounds import Bounds
-from .data.flight import FlightData, default_outputs
+from .data.flight import FlightData, FlightDataError, constant_outputs, default_outputs
 from .model import G_SI, LOWER, UPPER
 from .sim.discretize import Hold
 from .sim.population import PopulationCost
@@ -188,4 +188,8 @@ def as_problem(data: FlightData | Problem, defaults: dict[str, Any] | None = Non
         return data.variant(**settings) if settings else data
     if not isinstance(data, FlightData):
         raise TypeError(f"expected a FlightData or a Problem, got {type(data).__name__}")
+    flat = [c for c in settings.get("outputs") or () if c in constant_outputs(data)]
+    if flat:
+        raise FlightDataError(f"{data.source}: channel(s) {', '.join(flat)} constant (no correlation can be "
+                              f"scored); leave them out of outputs")
     return make_problem(data, Settings(**(defaults or {})), **settings)

@@ -37,8 +37,9 @@ def save_result(
 ) -> list[Path]:
     """Save ``result`` under ``out_dir``; returns the files written.
 
-    Writes ``result.json``, ``result.npz``, ``train_flight.npz`` / ``validate_flight.npz`` (the flights as the
-    fit and the scores saw them) and the PNG plots (time-domain verification, convergence).
+    Writes ``result.json`` (with each flight's source, preprocessing steps and load warnings under
+    ``provenance``), ``result.npz``, ``train_flight.npz`` / ``validate_flight.npz`` (the flights as the fit and
+    the scores saw them) and the PNG plots (time-domain verification, convergence).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -47,7 +48,9 @@ def save_result(
     files += [save_npz(f, out / FLIGHT_FILES[role]) for role, f in flights.items()]
     content = result.to_json()
     content["data"] = {role: FLIGHT_FILES[role] for role in flights}
-    files[0].write_text(json.dumps(content, indent=2))
+    content["provenance"] = {role: {"source": f.source, "preprocessing": f.metadata.get("preprocessing", []),
+                                    "warnings": f.metadata.get("warnings", [])} for role, f in flights.items()}
+    files[0].write_text(json.dumps(content, indent=2, default=str))
     np.savez(
         files[1],
         params=result.params,

@@ -78,8 +78,11 @@ def test_identify_and_evaluate_cli_write_the_documented_files(flights, tmp_path)
     save_npz(validate, tmp_path / "validate.npz")
     out = tmp_path / "run"
     rc = main(["identify", "--method", "iwo", "--train", str(tmp_path / "train.npz"), "--validate",
-               str(tmp_path / "validate.npz"), "--iterations", "3", "--trials", "2", "--out", str(out)])
+               str(tmp_path / "validate.npz"), "--iterations", "3", "--trials", "2", "--checkpoint-every", "1",
+               "--out", str(out)])
     assert rc == 0
+    progress = json.loads((out / "checkpoint.eqx.json").read_text())
+    assert (progress["iteration"], progress["chunk"]) == (3, 1)
     content = json.loads((out / "result.json").read_text())
     for key in ("method", "seed", "settings", "parameters", "intervals95", "stderr", "train", "validate"):
         assert key in content

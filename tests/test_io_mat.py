@@ -123,7 +123,7 @@ def test_bad_plain_arrays(tmp_path, arrays, match):
         (0, r"not a readable MATLAB v4/v5 file \(truncated, corrupt or v7.3\): MatReadError"),
         (100, "not a readable MATLAB"),
         (128, r"no variables in the file \(empty or truncated"),
-        (40000, "not a readable MATLAB.*could not read bytes"),
+        (40000, "not a readable MATLAB file: corrupt variable at byte 128: .*past the end of the file"),
     ],
 )
 def test_truncated_copies(shared_data, tmp_path, cut, match):

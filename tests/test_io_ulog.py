@@ -78,7 +78,7 @@ def test_rc_calibration_hand_computed(tmp_path):
               "vehicle_angular_velocity": {"timestamp": _stamps(0.02 * np.arange(5)), "xyz": np.zeros((5, 3))}}
     path = tmp_path / "rc.ulg"
     path.write_bytes(ulog_bytes(topics, params))
-    flight = load(path)
+    flight = load(path, strict=False)  # 5 samples: too short to identify from, read anyway
     expected = np.array([
         [-1.0, 1.0, 10 / 410, 0.0],
         [-0.5, 0.0, 0.0, -1.0],
@@ -157,7 +157,7 @@ def test_instances_and_explicit_scale(tmp_path):
     path = tmp_path / "multi.ulg"
     path.write_bytes(ulog_bytes(topics))
     flight = load(path, channels={"p": ("sensor_gyro", "x"), "q": ("sensor_gyro:1", "x", 2.0, 1.0)},
-                  missing_inputs="zero", rate_hz=50)
+                  missing_inputs="zero", rate_hz=50, strict=False)  # 5 samples: read anyway
     assert flight.dt == pytest.approx(0.02) and flight.n_samples == 5
     np.testing.assert_allclose(flight.output("p"), flight.time - flight.time[0] + ta[0], atol=1e-7)
     np.testing.assert_allclose(flight.output("q"), 1 - 2 * flight.output("p"), atol=1e-7)

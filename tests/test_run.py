@@ -66,6 +66,8 @@ def test_killed_run_resumes_bitwise(tmp_path, monkeypatch):
         minimize(IWO50, traced_bowl, jax.random.key(5), chunk=20, progress=False, checkpoint=path, resume=True)
     assert json.loads((tmp_path / "iwo.eqx.json").read_text())["iteration"] == 40
     assert not (tmp_path / "iwo.eqx.tmp").exists()
+    assert run._verified(path)[0]["iteration"] == 40  # the checkpoint left behind is whole (checksum holds)
+    (tmp_path / "iwo.eqx.tmp").write_bytes(b"torn")  # as if killed in the middle of the next write
 
     monkeypatch.setattr(run, "_save", save)
     monkeypatch.setattr(run, "_chunk", lambda *a: chunks.append(a[3]) or chunk(*a))
@@ -92,6 +94,50 @@ def test_checkpoint_refuses_other_settings(tmp_path):
     assert json.loads((tmp_path / "run.eqx.json").read_text())["key"] == np.asarray(
         jax.random.key_data(jax.random.key(6))).tolist()
     assert fresh.history.shape == (20,)
+
+
+def _flip_last_byte(data: bytes) -> bytes:
+    return data[:-1] + bytes([data[-1] ^ 1])
+
+
+def _edit_best_cost(data: bytes) -> bytes:
+    seal, header, payload = data.split(b"\n", 2)
+    edited = json.loads(header) | {"best_cost": 0.0}
+    return b"\n".join([seal, json.dumps(edited).encode(), payload])
+
+
+@pytest.mark.parametrize(
+    ("damage", "match"),
+    [
+        (_flip_last_byte, "corrupt checkpoint: its .* bytes do not match the stored SHA-256"),
+        (_edit_best_cost, "corrupt checkpoint"),
+        (lambda data: data[: len(data) // 2], "corrupt checkpoint"),
+        (lambda data: b"", r"not a jaxheli optimiser checkpoint \(empty file\)"),
+        (lambda data: b"\x00\x01garbage", r"not a jaxheli optimiser checkpoint \(no header\)"),
+    ],
+    ids=["flipped", "edited", "truncated", "empty", "garbage"],
+)
+def test_damaged_checkpoint_is_refused_naming_it(tmp_path, damage, match):
+    path = tmp_path / "run.eqx"
+    minimize(IWO50, traced_bowl, jax.random.key(5), iterations=20, chunk=20, progress=False, checkpoint=path)
+    path.write_bytes(damage(path.read_bytes()))
+    with pytest.raises(ValueError, match=rf"run\.eqx: {match}"):
+        minimize(IWO50, traced_bowl, jax.random.key(5), progress=False, checkpoint=path, resume=True)
+
+
+def test_progress_bar_moves_every_generation_and_changes_nothing(monkeypatch):
+    moves = []
+
+    class Bar(run.tqdm):
+        def update(self, n=1):
+            moves.append(n)
+            return super().update(n)
+
+    monkeypatch.setattr(run, "tqdm", Bar)
+    quiet = minimize(IWO50, traced_bowl, jax.random.key(7), chunk=20, progress=False)
+    shown = minimize(IWO50, traced_bowl, jax.random.key(7), chunk=20, progress=True)
+    assert moves == [1] * 50
+    _assert_same(shown, quiet)
 
 
 @pytest.mark.parametrize("opt", [IWO50, GA(LOWER, UPPER, iterations=50)], ids=["iwo", "ga"])

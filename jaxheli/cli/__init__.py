@@ -1,10 +1,11 @@
-"""Command line: ``jaxheli identify | evaluate | synth | check | localise | diagnose | blind | bench |
+"""Command line: ``jaxheli prepare | identify | evaluate | synth | check | localise | diagnose | blind | bench |
 trials-scaling | report`` (``jaxheli COMMAND --help``).
 
 Each module registers the parsers of one command group and holds their handlers, which parse arguments, call
-the library and print or write: :mod:`~jaxheli.cli.identify` (identify, evaluate, synth),
-:mod:`~jaxheli.cli.gap` (check, localise, diagnose, blind), :mod:`~jaxheli.cli.bench` (bench, trials-scaling),
-:mod:`~jaxheli.cli.report` (report); :mod:`~jaxheli.cli._options` holds the options several commands share.
+the library and print or write: :mod:`~jaxheli.cli.prepare` (prepare), :mod:`~jaxheli.cli.identify` (identify,
+evaluate, synth), :mod:`~jaxheli.cli.gap` (check, localise, diagnose, blind), :mod:`~jaxheli.cli.bench` (bench,
+trials-scaling), :mod:`~jaxheli.cli.report` (report); :mod:`~jaxheli.cli._options` holds the options several
+commands share.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import sys
 from .bench import add_bench_parser, add_trials_scaling_parser
 from .gap import add_blind_parser, add_check_parser, add_diagnose_parser, add_localise_parser
 from .identify import add_evaluate_parser, add_identify_parser, add_synth_parser
+from .prepare import add_prepare_parser
 from .report import add_report_parser
 
 
@@ -26,8 +28,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--float32", action="store_true", help="compute in float32 (faster; default float64)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (add_identify_parser, add_evaluate_parser, add_synth_parser, add_check_parser, add_localise_parser,
-                add_diagnose_parser, add_blind_parser, add_bench_parser, add_trials_scaling_parser, add_report_parser):
+    for add in (add_prepare_parser, add_identify_parser, add_evaluate_parser, add_synth_parser, add_check_parser,
+                add_localise_parser, add_diagnose_parser, add_blind_parser, add_bench_parser, add_trials_scaling_parser,
+                add_report_parser):
         add(sub)
     return parser
 

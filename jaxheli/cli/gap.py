@@ -8,14 +8,14 @@ from pathlib import Path
 
 from ..effects import registry as fx
 from ..evaluate import resolve_params
-from ..flights import DEFAULT_DATA, load_flight
+from ..flights import DEFAULT_DATA
 from ..gap.blind import KINDS, markdown, run_benchmark
 from ..gap.compare import localise_model, write_localisation
 from ..gap.consistency import MAX_TRAVEL_M, check, write_check
-from ..gap.diagnose import diagnose, prepare, ranking_table, write_diagnosis
-from ..io import load
+from ..gap.diagnose import diagnose, ranking_table, write_diagnosis
+from ..gap.prepare import prepare
 from ..model import G_SI
-from ._options import add_sim_options, outputs, sim_options
+from ._options import add_load_options, add_sim_options, finding_line, outputs, read_flight, sim_options
 
 
 def add_check_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -25,8 +25,7 @@ def add_check_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     p.add_argument("--out", default="jaxheli-check", help="output folder (consistency.json, consistency.png)")
     p.add_argument("--max-travel", type=float, default=MAX_TRAVEL_M,
                    help=f"plausible net displacement of the record, m (default {MAX_TRAVEL_M:g}: a hover test)")
-    p.add_argument("--zero-missing-sticks", action="store_true",
-                   help="logs only: read a log without stick channels (RC) with zero sticks")
+    add_load_options(p)
     p.set_defaults(func=_cmd_check)
     return p
 
@@ -40,6 +39,7 @@ def add_localise_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     p.add_argument("--window", type=float, default=5.0, help="time window, s (default 5)")
     p.add_argument("--max-lag", type=float, default=1.0, help="largest input-residual lag, s (default 1)")
     p.add_argument("--out", default="jaxheli-localise", help="output folder (localisation.json, PNGs)")
+    add_load_options(p)
     add_sim_options(p)
     p.set_defaults(func=_cmd_localise)
     return p
@@ -50,7 +50,8 @@ def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     parsers."""
     p = subparsers.add_parser("diagnose", help="which unmodelled effect explains a model's gap, and how far it shrinks")
     p.add_argument("--model", required=True, help="result.json / parameters JSON, or a named set: table2")
-    p.add_argument("--train", required=True, help="flight the effects are fitted on (file or 'default')")
+    p.add_argument("--train", required=True,
+                   help="flight the effects are fitted on (file, a 'jaxheli prepare' NPZ too, or 'default')")
     p.add_argument("--validate", required=True, help="held-out flight the shrink is measured on")
     p.add_argument("--out", default="jaxheli-diagnose", help="output folder (diagnosis.json, consistency.json, PNGs)")
     p.add_argument("--outputs", default=None, help="comma-separated channels (default: those both flights share)")
@@ -74,6 +75,7 @@ def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                    help="drop this many samples at each end of the training flight")
     p.add_argument("--train-lowpass", type=float, default=None, help="zero-phase low-pass of the training flight, Hz")
     p.add_argument("--train-dt", type=float, default=None, help="resample the training flight to this step, s")
+    add_load_options(p)
     p.set_defaults(func=_cmd_diagnose)
     return p
 
@@ -94,18 +96,18 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
-    flight = load(args.file, missing_inputs="zero") if args.zero_missing_sticks else load_flight(args.file)
+    flight = read_flight(args.file, args)
     findings = check(flight, args.max_travel)
     print(f"consistency of {flight.source} ({flight.n_samples} samples, dt {flight.dt:.4g} s); * = significant")
     for f in findings:
-        print(f"{'*' if f.significant else ' '} {f.kind:<16} {','.join(f.channels):<12} {f.message}")
+        print(finding_line(f.to_json()))
     for path in write_check(flight, findings, args.out):
         print(f"wrote {path}")
     return 0
 
 
 def _cmd_localise(args: argparse.Namespace) -> int:
-    flight = load_flight(args.data)
+    flight = read_flight(args.data, args)
     theta = resolve_params(args.model)
     report, _ = localise_model(
         theta, flight, outputs=outputs(args.outputs), x0=args.x0,
@@ -133,9 +135,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     if unknown or not chosen:
         raise SystemExit(f"jaxheli diagnose: --effects: unknown effect(s) {unknown}; candidates are {fx.ALL}")
     theta = resolve_params(args.model)
-    train = prepare(load_flight(args.train), correct_data=args.correct, trim_samples=args.train_trim,
+    train = prepare(read_flight(args.train, args), correct_data=args.correct, trim_samples=args.train_trim,
                     lowpass_hz=args.train_lowpass, dt=args.train_dt)
-    validate = prepare(load_flight(args.validate), correct_data=args.correct)
+    validate = prepare(read_flight(args.validate, args), correct_data=args.correct)
     diagnosis = diagnose(
         args.model, train, validate, outputs=outputs(args.outputs), effects=chosen, segment=args.segment,
         top=args.top, g=args.g, max_steps=args.max_steps, min_shrink=args.min_shrink, track=args.track,

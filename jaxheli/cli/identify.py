@@ -6,23 +6,27 @@ import argparse
 import json
 from pathlib import Path
 
-from ..flights import DEFAULT_DATA, load_flight
-from ._options import add_sim_options, outputs, sim_options
+from ..flights import DEFAULT_DATA
+from ._options import add_load_options, add_sim_options, outputs, read_flight, sim_options
 
 
 def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``identify`` on the ``jaxheli`` command line."""
     p = subparsers.add_parser("identify", help="fit the 40 parameters to a flight (IWO, GA, PEM, IWO + polish)")
     p.add_argument("--method", choices=("iwo", "ga", "pem", "iwo+polish"), default="iwo+polish")
-    p.add_argument("--train", default=DEFAULT_DATA, help="training flight file or 'default' (the embedded flight)")
+    p.add_argument("--train", default=DEFAULT_DATA,
+                   help="training flight file (a 'jaxheli prepare' NPZ too) or 'default' (the embedded flight)")
     p.add_argument("--validate", default=None, help="validation flight file (optional)")
     p.add_argument("--out", default="jaxheli-result", help="output folder (result.json, result.npz, PNGs)")
     p.add_argument("--iterations", type=int, default=1000, help="IWO / GA generations (default 1000, the paper)")
     p.add_argument("--trials", type=int, default=1, help="independent trials for 95%% intervals (the paper: 10)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.eqx")
+    p.add_argument("--checkpoint-every", type=int, default=50, metavar="N",
+                   help="write OUT/checkpoint.eqx every N generations (default 50); a resume continues from it")
     p.add_argument("--search-precision", choices=("float32", "float64"), default="float32",
                    help="arithmetic of the IWO / GA population scoring (default float32: fast, checked against float64)")
+    add_load_options(p)
     add_sim_options(p)
     p.set_defaults(func=_cmd_identify)
     return p
@@ -36,6 +40,7 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     p.add_argument("--x0", choices=("estimate", "zero", "measured"), default="estimate",
                    help="initial state: least-squares estimate (default, as MATLAB compare), zero (the paper), measured")
     p.add_argument("--out", default=None, help="write the metrics as JSON here")
+    add_load_options(p)
     add_sim_options(p)
     p.set_defaults(func=_cmd_evaluate)
     return p
@@ -64,7 +69,7 @@ def _print_metrics(title: str, block: dict) -> None:
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from ..evaluate import evaluate
 
-    flight = load_flight(args.data)
+    flight = read_flight(args.data, args)
     block = evaluate(args.model, flight, outputs=outputs(args.outputs), x0=args.x0, **sim_options(args))
     _print_metrics(f"{args.model} on {flight.source} ({flight.n_samples} samples, dt {flight.dt:.4g} s)", block)
     if args.out:
@@ -78,8 +83,10 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from ..identify import identify
     from ..results import save_result
 
-    train = load_flight(args.train)
-    validate = None if not args.validate else train if args.validate == args.train else load_flight(args.validate)
+    if args.checkpoint_every < 1:
+        raise ValueError(f"--checkpoint-every: must be >= 1 generation, got {args.checkpoint_every}")
+    train = read_flight(args.train, args)
+    validate = None if not args.validate else train if args.validate == args.train else read_flight(args.validate, args)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     result = identify(
@@ -92,6 +99,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         outputs=outputs(args.outputs),
         checkpoint=str(out / "checkpoint.eqx") if args.method != "pem" else None,
         resume=args.resume,
+        chunk=args.checkpoint_every,
         search_precision=args.search_precision,
         **sim_options(args),
     )

@@ -37,6 +37,9 @@ class FlightData:
 
     def __post_init__(self) -> None:
         src = self.source
+        for field in ("time", "inputs", "outputs"):
+            if np.iscomplexobj(getattr(self, field)):
+                raise FlightDataError(f"{src}: field '{field}': complex values; flight data must be real")
         time = np.asarray(self.time, dtype=np.float64)
         inputs = np.asarray(self.inputs, dtype=np.float64)
         outputs = np.asarray(self.outputs, dtype=np.float64)
@@ -141,6 +144,13 @@ class FlightData:
         )
 
 
+def constant_outputs(flight: FlightData) -> tuple[str, ...]:
+    """Output channels whose samples never change (no correlation can be computed on them)."""
+    return tuple(c for c, spread in zip(flight.output_names, np.ptp(flight.outputs, axis=0)) if spread == 0)
+
+
 def default_outputs(flight: FlightData) -> tuple[str, ...]:
-    """The flight's measured channels without the flapping columns (:data:`jaxheli.model.FLAPPING`)."""
-    return tuple(c for c in flight.output_names if c not in FLAPPING)
+    """The flight's measured channels without the flapping columns (:data:`jaxheli.model.FLAPPING`) and
+    without the constant ones (:func:`constant_outputs`)."""
+    flat = constant_outputs(flight)
+    return tuple(c for c in flight.output_names if c not in FLAPPING and c not in flat)

@@ -11,4 +11,5 @@ from .localise import localise as localise
 from .compare import frequency_comparison as frequency_comparison, localise_model as localise_model
 from .compare import localise_prediction as localise_prediction
 from .diagnose import diagnose as diagnose, write_diagnosis as write_diagnosis
+from .prepare import prepare as prepare
 from .ranking import diagnose_effects as diagnose_effects, rank_effects as rank_effects

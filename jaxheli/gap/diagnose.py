@@ -26,7 +26,7 @@ import numpy as np
 from .._types import Array, Float
 from ..cost import nmse
 from ..evaluate import resolve_params
-from ..data.flight import FlightData
+from ..data.flight import FlightData, constant_outputs
 from ..problem import make_problem
 from ..model import G_SI, MEASURABLE, PARAM_NAMES
 from ..effects import registry as fx
@@ -44,17 +44,13 @@ def shared_outputs(train: FlightData, validate: FlightData) -> tuple[str, ...]:
     """Channels both flights carry that the model measures (``a``, ``b`` excluded) and that move on both
     (a constant channel, e.g. velocities a log filled with zeros, carries no information), in ``train``'s
     order."""
+    flat = set(constant_outputs(train)) | set(constant_outputs(validate))
     names = tuple(c for c in train.output_names
-                  if c in validate.output_names and c in MEASURABLE and c not in _NOT_STATES
-                  and not _constant(train, c) and not _constant(validate, c))
+                  if c in validate.output_names and c in MEASURABLE and c not in _NOT_STATES and c not in flat)
     if not names:
         raise ValueError(f"{train.source} {train.output_names} and {validate.source} {validate.output_names} "
                          f"share no model output channel that varies")
     return names
-
-
-def _constant(flight: FlightData, channel: str) -> bool:
-    return bool(np.ptp(flight.output(channel)) == 0)
 
 
 def effect_eta(effect: str, params: dict[str, dict[str, float]], outputs: tuple[str, ...]) -> Float[np.ndarray, "E"]:
@@ -133,7 +129,7 @@ def diagnose(
     if bad:
         raise ValueError(f"diagnose: output channel(s) {bad} are not model states the diagnosis can use")
     for role, flight in (("train", train), ("validate", validate)):
-        flat = [c for c in names if _constant(flight, c)]
+        flat = [c for c in names if c in constant_outputs(flight)]
         if flat:
             raise ValueError(f"{flight.source} ({role} flight): output channel(s) {flat} are constant; leave "
                              f"them out of outputs")
@@ -253,24 +249,6 @@ def plot_before_after(
     fig.suptitle(f"{flight.source}: before and after the effect (validation flight)", fontsize=10)
     fig.tight_layout()
     return _save(fig, path)
-
-
-def prepare(
-    flight: FlightData, *, correct_data: bool = False, trim_samples: int = 0, lowpass_hz: float | None = None,
-    dt: float | None = None,
-) -> FlightData:
-    """A flight ready for diagnosis: ends trimmed, significant consistency findings applied, low-passed,
-    resampled (each step optional, in that order, logged in ``metadata["preprocessing"]``)."""
-    from ..data.preprocess import lowpass, resample, trim
-    from .consistency import correct
-
-    if trim_samples:
-        flight = trim(flight, drop_samples=trim_samples)
-    if correct_data:
-        flight = correct(flight, check(flight))
-    if lowpass_hz:
-        flight = lowpass(flight, lowpass_hz)
-    return resample(flight, dt) if dt else flight
 
 
 def ranking_table(diagnosis: dict[str, Any]) -> list[str]:

@@ -83,6 +83,12 @@ def plot_lag_correlation(localisation: Mapping[str, object], path: str | Path, t
     return _save(fig, path)
 
 
+def _decibels(response: np.ndarray) -> np.ndarray:
+    """``20 log10 |H|``; NaN (not drawn) where ``H`` is zero, e.g. for a stick that never moves."""
+    magnitude = np.abs(response)
+    return np.where(magnitude > 0, 20 * np.log10(np.where(magnitude > 0, magnitude, 1.0)), np.nan)
+
+
 def plot_frequency_response(
     flight: FrequencyResponse,
     model: np.ndarray | Mapping[str, np.ndarray] | None,
@@ -109,12 +115,12 @@ def plot_frequency_response(
         gamma = np.clip(np.asarray(flight.coherence)[:, k, m], 0, 1)
         colours = np.zeros((f.size, 4))
         colours[:, 3] = 0.15 + 0.85 * gamma
-        axes[0, c].scatter(f, 20 * np.log10(np.abs(H)), s=6, c=colours, label="flight")
+        axes[0, c].scatter(f, _decibels(H), s=6, c=colours, label="flight")
         axes[1, c].scatter(f, np.degrees(np.angle(H)), s=6, c=colours)
         for j, (label, response) in enumerate(models.items()):
             Hm = np.asarray(response)[:, k, m]
             colour = "C3" if len(models) == 1 else f"C{j % 10}"  # the time-domain plots' colours
-            axes[0, c].plot(f, 20 * np.log10(np.abs(Hm)), color=colour, lw=1.2, label=label)
+            axes[0, c].plot(f, _decibels(Hm), color=colour, lw=1.2, label=label)
             axes[1, c].plot(f, np.degrees(np.angle(Hm)), color=colour, lw=1.2)
         axes[2, c].plot(f, gamma, color="C2", lw=1.0)
         axes[2, c].set_ylim(0, 1.02)

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..data.flight import FlightData, FlightDataError
+from ._guard import existing_file
 from .csv import load_csv as load_csv, save_csv as save_csv
 from .mat import load_mat as load_mat
 from .mavlink import DEFAULT_PX4 as DEFAULT_PX4, load_log as load_log
@@ -30,14 +31,19 @@ _MAGIC: tuple[tuple[bytes, Callable[..., FlightData]], ...] = (
 def load(path: str | Path, **options: Any) -> FlightData:
     """Read a flight from ``.mat``, ``.csv``, ``.npz``, ``.px4log``, ``.bin`` or ``.ulg`` (extension first,
     else the file's first bytes); ``options`` go to the reader (:func:`load_mat`, :func:`load_csv`,
-    :func:`load_npz`, :func:`load_log`, :func:`load_ulog`)."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such flight-data file")
+    :func:`load_npz`, :func:`load_log`, :func:`load_ulog`; every one takes ``strict``).
+
+    Whatever goes wrong in a reader raises :class:`FlightDataError` (a ``ValueError``) naming the file, or
+    ``FileNotFoundError`` when there is no file; implausible data raise unless ``strict=False``
+    (:func:`jaxheli.data.plausible.check_plausible`)."""
+    path = existing_file(path)
     reader = READERS.get(path.suffix.lower())
     if reader is None:
-        with path.open("rb") as fh:
-            head = fh.read(128)
+        try:
+            with path.open("rb") as fh:
+                head = fh.read(128)
+        except OSError as exc:
+            raise FlightDataError(f"{path}: cannot be read: {exc}") from exc
         reader = next((r for magic, r in _MAGIC if head.startswith(magic)), None)
         if reader is None and b"time" in head.split(b"\n")[0] and b"," in head:
             reader = load_csv

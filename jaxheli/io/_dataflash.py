@@ -46,9 +46,7 @@ class Scan:
 
 
 def check_head(path: Path) -> None:
-    """Reject missing, empty, too short or non-DataFlash files before pymavlink sees them."""
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such flight-data file")
+    """Reject empty, too short or non-DataFlash files before pymavlink sees them."""
     size = path.stat().st_size
     with path.open("rb") as fh:
         head = fh.read(3)
@@ -84,7 +82,7 @@ def scan_log(path: Path, wanted: Mapping[str, set[str]]) -> Scan:
             before = reader.offset
             msg = reader.recv_msg()
             if msg is None:
-                out.end, out.truncated = before, reader.offset < reader.data_len
+                out.end, out.truncated = before, before < reader.data_len  # even a bare 3-byte record header
                 break
             gap = reader.offset - msg.fmt.len - before
             if gap > 0:

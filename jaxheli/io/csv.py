@@ -12,14 +12,14 @@ import numpy as np
 from ..data.flight import FlightData, FlightDataError
 from ..model import INPUT_NAMES, MEASURABLE
 from ..data.preprocess import from_samples
+from ._guard import guarded
 
 
+@guarded("CSV")
 def load_csv(path: str | Path, *, dt: float | None = None) -> FlightData:
     """Read a CSV flight. Time stamps must increase; with ``dt`` (s) uneven stamps are interpolated onto
     a uniform grid of that step, otherwise they must already be uniform."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such flight-data file")
     try:
         with path.open(newline="", encoding="utf-8") as fh:
             rows = list(csv.reader(fh))

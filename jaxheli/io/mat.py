@@ -24,17 +24,23 @@ from scipy.io.matlab import MatReadError
 
 from ..data.flight import FlightData, FlightDataError
 from ..model import INPUT_NAMES, MEASURABLE
+from ._guard import guarded
+from ._matcheck import check_mat
 
 IDDATA_COLUMNS = ("u", "v", "p", "q", "phi", "theta", "w", "r")
 OUTR_COLUMNS = {
     10: ("graphready", ("u", "v", "p", "q", "phi", "theta", "a", "b", "w", "r")),
     11: ("tested", ("u", "v", "theta", "phi", "q", "p", "a", "b", "AccZ", "r", "r_fb")),
 }
-"""Output column names of plain ``outr`` arrays, keyed by their column count."""
+"""Output column names of plain ``outr`` arrays, keyed by their column count. A count alone does not decide:
+the layout is taken only when its ``a`` and ``b`` columns are multiples of the ``lon`` and ``lat`` sticks."""
 
 _FLAPPING = ("a", "b")
+_STICK_MULTIPLE_TOL = 1e-6
+"""Largest misfit of a flapping column to a multiple of its stick, relative to the column's size."""
 
 
+@guarded("MATLAB")
 def load_mat(
     path: str | Path,
     *,
@@ -48,6 +54,7 @@ def load_mat(
     ``{"inputs": name, "outputs": name, "time": name}`` for plain arrays (inputs ``[N, 4]`` lat lon ped
     col, time in s). ``columns`` names the output columns (names outside ``MEASURABLE`` are dropped); by
     default they come from the detected layout. Outputs are returned in state order (``MEASURABLE``).
+    The file's structure is checked before scipy reads it (:mod:`jaxheli.io._matcheck`).
     """
     path = Path(path)
     data, load_notes = _loadmat(path)
@@ -58,7 +65,7 @@ def load_mat(
         layout, default_cols = "iddata", IDDATA_COLUMNS
     else:
         time, inputs, outputs = _from_arrays(path, data, variables)
-        layout, default_cols = OUTR_COLUMNS.get(outputs.shape[1], ("custom", None))
+        layout, default_cols = _layout(path, variables, inputs, outputs) if columns is None else ("custom", None)
         ts, notes = round(float(np.median(np.diff(time))), 9), []
     cols = tuple(columns) if columns is not None else default_cols
     out_var = variables.get("iddata", variables.get("outputs"))
@@ -86,8 +93,7 @@ def load_mat(
 
 def _loadmat(path: Path) -> tuple[dict[str, Any], list[str]]:
     """All variables of the file, and the texts of any warnings scipy raised while reading it."""
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such flight-data file")
+    check_mat(path)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -131,6 +137,8 @@ def _matrix(path: Path, name: str, value: Any, cols: int | None = None) -> np.nd
         raise FlightDataError(
             f"{path}: variable '{name}': expected a numeric {want} array, got {arr.dtype} {arr.shape}"
         )
+    if np.iscomplexobj(arr):
+        raise FlightDataError(f"{path}: variable '{name}': complex values; flight data must be real")
     return arr.astype(np.float64)
 
 
@@ -142,10 +150,35 @@ def _unwrap(value: Any) -> np.ndarray:
     return arr
 
 
-def _scalar(value: Any, default: float) -> float:
-    """A MATLAB scalar (``default`` when empty)."""
+def _scalar(path: Path, field: str, value: Any, default: float) -> float:
+    """A real MATLAB scalar (``default`` when empty); ``field`` names it in errors."""
     arr = _unwrap(value)
-    return float(arr.reshape(-1)[0]) if arr.size else default
+    if not arr.size:
+        return default
+    if not np.issubdtype(arr.dtype, np.number) or np.iscomplexobj(arr):
+        raise FlightDataError(
+            f"{path}: field '{field}': expected a real number, got {arr.dtype} {arr.reshape(-1)[:3]}"
+        )
+    return float(arr.reshape(-1)[0])
+
+
+def _layout(path: Path, variables: Mapping[str, str], inputs: np.ndarray, outputs: np.ndarray):
+    """``(layout, columns)`` of a plain ``outr`` array: its column count names a candidate in
+    :data:`OUTR_COLUMNS`, taken only if the candidate's ``a`` and ``b`` columns are multiples of the cyclic
+    sticks (``a`` of ``lon``, ``b`` of ``lat``) as in the authors' files; ``("custom", None)`` otherwise."""
+    if outputs.shape[1] not in OUTR_COLUMNS:
+        return "custom", None
+    layout, cols = OUTR_COLUMNS[outputs.shape[1]]
+    for flap, stick in (("a", "lon"), ("b", "lat")):
+        col, x = outputs[:, cols.index(flap)], inputs[:, INPUT_NAMES.index(stick)]
+        gain = float(x @ col / (x @ x)) if x @ x > 0 else 0.0
+        if np.max(np.abs(col - gain * x)) > _STICK_MULTIPLE_TOL * max(1.0, float(np.max(np.abs(col)))):
+            raise FlightDataError(
+                f"{path}: variable '{variables['outputs']}': {outputs.shape[1]} columns suggest the '{layout}' "
+                f"layout, but its column {cols.index(flap) + 1} ('{flap}') is not a multiple of the '{stick}' "
+                f"stick; pass columns= (one name each)"
+            )
+    return layout, cols
 
 
 def _from_iddata(path: Path, data: Mapping[str, Any], name: str):
@@ -164,10 +197,10 @@ def _from_iddata(path: Path, data: Mapping[str, Any], name: str):
         arrays[field] = arr
     outputs = _matrix(path, f"{name}.OutputData", arrays["OutputData"])
     inputs = _matrix(path, f"{name}.InputData", arrays["InputData"], len(INPUT_NAMES))
-    ts = _scalar(rec["Ts"], float("nan"))
+    ts = _scalar(path, f"{name}.Ts", rec["Ts"], float("nan"))
     if not ts > 0:
         raise FlightDataError(f"{path}: variable '{name}' field 'Ts': sample time must be > 0 s, got {ts}")
-    t0 = _scalar(rec["Tstart"], 0.0) if "Tstart" in fields else 0.0
+    t0 = _scalar(path, f"{name}.Tstart", rec["Tstart"], 0.0) if "Tstart" in fields else 0.0
     notes = [str(s).strip() for s in np.asarray(rec["Notes"]).reshape(-1)] if "Notes" in fields else []
     time = t0 + ts * np.arange(outputs.shape[0])
     return time, inputs, outputs, ts, [n for n in notes if n]
@@ -182,7 +215,7 @@ def _from_arrays(path: Path, data: Mapping[str, Any], variables: Mapping[str, st
     outputs = _matrix(path, variables["outputs"], _get(path, data, variables["outputs"], "outputs"))
     if "time" not in variables:
         raise FlightDataError(f"{path}: no time variable: pass variables={{..., 'time': name}}")
-    time = np.asarray(_get(path, data, variables["time"], "time"), dtype=np.float64).reshape(-1)
+    time = _matrix(path, variables["time"], np.atleast_2d(_get(path, data, variables["time"], "time"))).reshape(-1)
     n = {variables["inputs"]: inputs.shape[0], variables["outputs"]: outputs.shape[0], variables["time"]: time.size}
     if len(set(n.values())) != 1:
         raise FlightDataError(f"{path}: variables disagree on the number of samples: {n}")

@@ -26,6 +26,7 @@ import numpy as np
 from ..data.flight import FlightData, FlightDataError
 from ..model import INPUT_NAMES, MEASURABLE
 from ._dataflash import Scan, check_head, scan_log
+from ._guard import guarded
 
 Channel = tuple[str, str] | tuple[str, str, float]
 
@@ -40,6 +41,7 @@ DEFAULT_PX4: dict[str, Channel] = {
 _ANGLES = ("phi", "theta")
 
 
+@guarded("DataFlash/sdlog2 (pymavlink)")
 def load_log(
     path: str | Path,
     channels: Mapping[str, Channel] | None = None,
@@ -55,7 +57,9 @@ def load_log(
     field is absent are dropped (listed in ``metadata["dropped"]``). Inputs are always required unless
     ``missing_inputs="zero"``, which fills absent or unmapped sticks with zeros. ``rate_hz`` sets the
     grid rate (Hz). ``strict=False`` loads the readable part of a truncated or corrupt log (noted in
-    ``metadata["problems"]``) instead of raising.
+    ``metadata["problems"]``) instead of raising, and records implausible values as warnings
+    (:func:`jaxheli.data.plausible.check_plausible`). What pymavlink prints is captured into
+    ``metadata["warnings"]`` (or the error), not shown.
     """
     path = Path(path)
     if missing_inputs not in ("error", "zero"):
@@ -78,7 +82,9 @@ def load_log(
             f"(log empty or truncated)"
         )
     if strict and problems:
-        raise FlightDataError(f"{path}: {'; '.join(problems)}; pass strict=False to load the readable part")
+        raise FlightDataError(
+            f"{path}: {'; '.join(problems)}; pass strict=False (--no-strict) to load the readable part"
+        )
     series, dropped, zeroed = {}, {}, []
     for name in (*MEASURABLE, *INPUT_NAMES):
         is_input = name in INPUT_NAMES
@@ -97,7 +103,7 @@ def load_log(
             zeroed.append(name)
             dropped[name] = why
         elif is_input or explicit:
-            hint = "; pass missing_inputs='zero' for zero sticks" if is_input else ""
+            hint = "; pass missing_inputs='zero' (--missing-inputs zero) for zero sticks" if is_input else ""
             raise FlightDataError(f"{path}: {where}{hint}")
         else:
             dropped[name] = why

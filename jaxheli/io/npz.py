@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..data.flight import FlightData, FlightDataError
+from ._guard import guarded
 
 _FIELDS = ("time", "inputs", "outputs", "output_names", "source", "metadata")
 
@@ -38,11 +39,11 @@ def save_npz(flight: FlightData, path: str | Path) -> Path:
     return path
 
 
+@guarded("NPZ")
 def load_npz(path: str | Path) -> FlightData:
-    """Read a flight written by :func:`save_npz`."""
+    """Read a flight written by :func:`save_npz`; errors name ``path`` (the stored ``source`` is kept as the
+    flight's source)."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such flight-data file")
     bad = (zipfile.BadZipFile, zlib.error, ValueError, OSError, EOFError)
     try:
         npz = np.load(path, allow_pickle=False)
@@ -63,5 +64,10 @@ def load_npz(path: str | Path) -> FlightData:
         metadata = json.loads(str(arrays["metadata"]))
     except json.JSONDecodeError as exc:
         raise FlightDataError(f"{path}: field 'metadata': not valid JSON: {exc}") from exc
+    if not isinstance(metadata, dict):
+        raise FlightDataError(f"{path}: field 'metadata': expected a JSON object, got {type(metadata).__name__}")
     names = tuple(str(n) for n in np.atleast_1d(arrays["output_names"]))
-    return FlightData(arrays["time"], arrays["inputs"], arrays["outputs"], names, str(arrays["source"]), metadata)
+    try:
+        return FlightData(arrays["time"], arrays["inputs"], arrays["outputs"], names, str(arrays["source"]), metadata)
+    except FlightDataError as exc:
+        raise FlightDataError(f"{path}: stored flight invalid: {exc}") from None

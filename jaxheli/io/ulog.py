@@ -40,6 +40,7 @@ from .._types import Float
 from ..data.flight import FlightData, FlightDataError
 from ..model import INPUT_NAMES, MEASURABLE
 from ._dataflash import Scan
+from ._guard import guarded
 from .mavlink import _absent, _grid, _interp, _series
 
 Spec = tuple[str, str] | tuple[str, str, float] | tuple[str, str, float, float]
@@ -79,6 +80,7 @@ class _Unavailable(Exception):
     """A channel's source cannot be read from this log (the message says why)."""
 
 
+@guarded("ULog (pyulog)")
 def load_ulog(
     path: str | Path,
     channels: Mapping[str, Channel] | None = None,
@@ -118,7 +120,9 @@ def load_ulog(
             f"(log empty or truncated{'; ' + '; '.join(problems) if problems else ''})"
         )
     if strict and problems:
-        raise FlightDataError(f"{path}: {'; '.join(problems)}; pass strict=False to load the readable part")
+        raise FlightDataError(
+            f"{path}: {'; '.join(problems)}; pass strict=False (--no-strict) to load the readable part"
+        )
     params = ulog.initial_parameters
     series, used, dropped, zeroed = {}, {}, {}, []
     for name in (*MEASURABLE, *INPUT_NAMES):
@@ -145,7 +149,7 @@ def load_ulog(
             zeroed.append(name)
             dropped[name] = why
         elif is_input or explicit:
-            hint = "; pass missing_inputs='zero' for zero sticks" if is_input else ""
+            hint = "; pass missing_inputs='zero' (--missing-inputs zero) for zero sticks" if is_input else ""
             raise FlightDataError(f"{path}: {where}{hint}")
         else:
             dropped[name] = why
@@ -221,8 +225,6 @@ def _label(spec: tuple[str, str, float, float]) -> str:
 def _walk(path: Path) -> list[str]:
     """Check the header, then follow the message headers: truncation and corruption, which pyulog passes
     over silently (it stops at a cut message and resynchronises after garbage)."""
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such flight-data file")
     data = path.read_bytes()
     if not data:
         raise FlightDataError(f"{path}: empty file (0 bytes)")

@@ -1,26 +1,31 @@
 """Drive a population optimiser: chunked ``lax.scan``, best-cost history, checkpoints, vmapped trials.
 
 A run is ``init`` then ``step`` repeated; :func:`minimize` scans ``chunk`` generations per jitted call
-(compiled once per chunk length) and only returns to Python between chunks, to advance the progress bar
-and write the checkpoint. :func:`minimize_trials` runs K independent trials in the same scan: ask and
-tell are vmapped over the trial axis, and the K candidate batches are flattened into one
-``cost_fn(thetas[K * B, dim])`` call, so a batched simulator sees one large population per generation.
+(compiled once per chunk length) and only returns to Python between chunks, to write the checkpoint; the
+progress bar moves every generation (a host callback from inside the scan). :func:`minimize_trials` runs K
+independent trials in the same scan: ask and tell are vmapped over the trial axis, and the K candidate
+batches are flattened into one ``cost_fn(thetas[K * B, dim])`` call, so a batched simulator sees one large
+population per generation.
 
 ``cost_fn`` is closed over by the jitted chunk: pass a pure JAX function of ``thetas`` (an
 ``eqx.Partial`` or ``eqx.Module`` keeps large arrays such as flight records traced instead of baked
 into the program as constants; a plain function is hashed by identity, so reuse the same object to
 reuse the compiled chunk).
 
-Checkpoint file (``checkpoint``): one JSON header line (format, optimiser settings, key, iteration,
-best cost) followed by ``eqx.tree_serialise_leaves`` of ``(state, history)``; written to a temporary
-file and moved into place with ``os.replace``, so a kill leaves the previous or the new checkpoint,
-never a torn one. ``<checkpoint>.json`` holds a copy of the header for people and tools. A resumed
-run with the same chunk size is bitwise identical to an uninterrupted one.
+Checkpoint file (``checkpoint``): a JSON line with the format and the SHA-256 of everything after it, one
+JSON header line (optimiser settings, key, iteration, best cost), then ``eqx.tree_serialise_leaves`` of
+``(state, history)``; written to a temporary file and moved into place with ``os.replace``, so a kill
+leaves the previous or the new checkpoint, never a torn one. A checkpoint whose bytes do not match its
+checksum (flipped, edited, empty or truncated) is refused with an error naming it. ``<checkpoint>.json``
+holds a copy of the header for people and tools. A resumed run with the same chunk size is bitwise
+identical to an uninterrupted one.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import io
 import json
 import os
 from pathlib import Path
@@ -35,7 +40,9 @@ from tqdm import tqdm
 from .._types import Array, ArrayLike, Float, Int
 from ._base import AbstractPopulationOptimizer, CostFn, raw_key
 
-_FORMAT = "jaxheli-optim-checkpoint-1"
+_FORMAT = "jaxheli-optim-checkpoint-2"
+_BARS: list[tqdm] = []
+"""Progress bars of the runs in progress (the innermost last), moved by :func:`_tick`."""
 
 
 class RunResult(eqx.Module):
@@ -131,15 +138,19 @@ def _drive(
         history = jnp.zeros((0,) + state.best_cost.shape, state.best_cost.dtype)
     done = history.shape[0]
     with tqdm(total=total, initial=min(done, total), disable=not progress, unit="gen") as bar:
-        while done < total:
-            n = min(chunk, total - done)
-            state, costs = _chunk(optimizer, cost_fn, state, n, trials)
-            history = jnp.concatenate([history, costs])
-            done += n
-            if path is not None:
-                _save(path, settings, state, history, total, chunk)
-            bar.update(n)
-            bar.set_postfix(best=f"{float(jnp.min(state.best_cost)):.6g}")
+        _BARS.append(bar)
+        try:
+            while done < total:
+                n = min(chunk, total - done)
+                state, costs = _chunk(optimizer, cost_fn, state, n, trials, progress)
+                history = jnp.concatenate([history, costs])
+                done += n
+                if path is not None:
+                    _save(path, settings, state, history, total, chunk)
+                jax.effects_barrier()
+                bar.set_postfix(best=f"{float(jnp.min(state.best_cost)):.6g}")
+        finally:
+            _BARS.pop()
     return RunResult(
         best_theta=state.best_theta,
         best_cost=state.best_cost,
@@ -169,10 +180,21 @@ def _step(optimizer: AbstractPopulationOptimizer, cost_fn: CostFn, state: Any, t
     return jax.vmap(optimizer.tell)(state, candidates, _flat_cost(cost_fn, candidates.theta))
 
 
+def _tick() -> None:
+    """One generation done: move the innermost progress bar."""
+    if _BARS:
+        _BARS[-1].update(1)
+
+
 @eqx.filter_jit
-def _chunk(optimizer: AbstractPopulationOptimizer, cost_fn: CostFn, state: Any, length: int, trials: bool):
+def _chunk(
+    optimizer: AbstractPopulationOptimizer, cost_fn: CostFn, state: Any, length: int, trials: bool,
+    progress: bool = False,
+):
     def body(carry, _):
         carry = _step(optimizer, cost_fn, carry, trials)
+        if progress:
+            jax.debug.callback(_tick)
         return carry, carry.best_cost
 
     return jax.lax.scan(body, state, None, length=length)
@@ -197,8 +219,11 @@ def _save(path: Path, settings: dict[str, Any], state: Any, history: Array, tota
         "best_cost": np.asarray(state.best_cost).tolist(),
         "n_evaluations": np.asarray(state.n_evaluations).tolist(),
     }
-    text = json.dumps(header)
-    _replace(path, lambda f: (f.write(text.encode() + b"\n"), eqx.tree_serialise_leaves(f, (state, history))))
+    body = io.BytesIO()
+    body.write(json.dumps(header).encode() + b"\n")
+    eqx.tree_serialise_leaves(body, (state, history))
+    seal = json.dumps({"format": _FORMAT, "sha256": hashlib.sha256(body.getvalue()).hexdigest()})
+    _replace(path, lambda f: f.write(seal.encode() + b"\n" + body.getvalue()))
     _replace(path.with_name(path.name + ".json"), lambda f: f.write(json.dumps(header, indent=1).encode()))
 
 
@@ -213,13 +238,32 @@ def _replace(path: Path, write) -> None:
 
 
 def _load(path: Path, settings: dict[str, Any], state_like: Any) -> tuple[Any, Array]:
-    with open(path, "rb") as f:
-        header = json.loads(f.readline())
-        if header.get("format") != _FORMAT:
-            raise ValueError(f"{path}: not a jaxheli optimiser checkpoint (format {header.get('format')!r})")
-        differ = sorted(k for k in settings if header.get(k) != settings[k])
-        if differ:
-            raise ValueError(f"{path}: checkpoint was written with different {differ}; cannot resume")
-        cost = state_like.best_cost
-        history_like = jax.ShapeDtypeStruct((header["iteration"],) + cost.shape, cost.dtype)
-        return eqx.tree_deserialise_leaves(f, (state_like, history_like))
+    header, payload = _verified(path)
+    differ = sorted(k for k in settings if header.get(k) != settings[k])
+    if differ:
+        raise ValueError(f"{path}: checkpoint was written with different {differ}; cannot resume")
+    cost = state_like.best_cost
+    history_like = jax.ShapeDtypeStruct((header["iteration"],) + cost.shape, cost.dtype)
+    try:
+        return eqx.tree_deserialise_leaves(io.BytesIO(payload), (state_like, history_like))
+    except Exception as exc:  # equinox/numpy raise several types on a payload of the wrong layout
+        raise ValueError(f"{path}: checkpoint does not hold this run's optimiser state ({exc})") from exc
+
+
+def _verified(path: Path) -> tuple[dict[str, Any], bytes]:
+    """The header and the serialised state of a checkpoint whose checksum holds; ``ValueError`` naming the
+    file otherwise (empty, truncated, edited, flipped bytes, another format)."""
+    data = path.read_bytes()
+    seal_line, _, body = data.partition(b"\n")
+    try:
+        seal = json.loads(seal_line)
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        seal = None
+    if not isinstance(seal, dict) or seal.get("format") != _FORMAT:
+        what = "empty file" if not data else f"format {seal.get('format')!r}" if isinstance(seal, dict) else "no header"
+        raise ValueError(f"{path}: not a jaxheli optimiser checkpoint ({what}); delete it or run without --resume")
+    if hashlib.sha256(body).hexdigest() != seal.get("sha256"):
+        raise ValueError(f"{path}: corrupt checkpoint: its {len(body)} bytes do not match the stored SHA-256 "
+                         f"(truncated or changed); delete it or run without --resume")
+    header_line, _, payload = body.partition(b"\n")
+    return json.loads(header_line), payload

@@ -1,0 +1,30 @@
+"""A flight made ready for identification or diagnosis: the preparation chain of ``jaxheli prepare`` (and of
+``benchmarks/paper_comparison.py``'s training flight), each step optional and logged in the flight's
+``metadata["preprocessing"]``."""
+
+from __future__ import annotations
+
+from ..data.flight import FlightData
+from ..data.preprocess import lowpass, resample, trim
+from .consistency import check, correct
+
+
+def prepare(
+    flight: FlightData, *, window: tuple[float, float] | None = None, trim_samples: int = 0,
+    check_data: bool = False, correct_data: bool = False, lowpass_hz: float | None = None,
+    dt: float | None = None,
+) -> FlightData:
+    """``flight`` cut to ``window`` (``(t0, t1)`` s on its own time axis) and ``trim_samples`` dropped at each
+    end, then checked for consistency (:func:`~jaxheli.gap.consistency.check`; ``check_data`` records the
+    findings in ``metadata["consistency"]``, ``correct_data`` also applies the significant ones), low-passed
+    at ``lowpass_hz`` (zero-phase, inputs too) and resampled to ``dt`` (s), in that order."""
+    if window is not None or trim_samples:
+        start, stop = window if window is not None else (None, None)
+        flight = trim(flight, start=start, stop=stop, drop_samples=trim_samples)
+    if check_data or correct_data:
+        findings = check(flight)
+        flight = correct(flight, findings) if correct_data else flight
+        flight = flight.replace(metadata={**flight.metadata, "consistency": [f.to_json() for f in findings]})
+    if lowpass_hz:
+        flight = lowpass(flight, lowpass_hz)
+    return resample(flight, dt) if dt else flight
