@@ -27,12 +27,12 @@ them, and ``jaxheli report`` reads them rather than the raw source files."""
 
 def _verification(result: IdentificationResult, flight: FlightData, x0, path: Path, title: str) -> Path:
     """Plot ``PLOT_CHANNELS`` as the result was scored on ``flight``, from ``x0`` (``"estimate"``, ``"zero"``),
-    with the truth's response beside when it is known."""
+    with the truth's response beneath when it is known."""
     scored = tuple(c for c in result.settings["outputs"] if c in flight.output_names) or default_outputs(flight)
     chans = tuple(c for c in PLOT_CHANNELS if c in scored) or scored
-    models = {result.method: simulate_as_scored(result.params, result.settings, flight, chans, x0)}
-    if result.truth is not None:
-        models["truth"] = simulate_as_scored(result.truth["parameters"], result.settings, flight, chans, x0)
+    truth = {} if result.truth is None else {
+        "truth": simulate_as_scored(result.truth["parameters"], result.settings, flight, chans, x0)}
+    models = {**truth, result.method: simulate_as_scored(result.params, result.settings, flight, chans, x0)}
     return plot_time_domain(flight.time, flight.select(chans).outputs, models, chans, path, title)
 
 

@@ -12,6 +12,9 @@ slightly, and its answer is clipped into the box. Unlike a sigmoid map ``lower +
 keeps unit slope at and near a bound (a sigmoid flattens there and froze parameters that started within
 0.1 % of a bound, e.g. ``Nr`` at -10, in our tests).
 
+Several records (:class:`jaxheli.problem.Records`) concatenate their residuals, so the sums of squares add; the
+initial state of each can be fitted with the parameters (``fit``'s ``fit_x0``, as the output-error polish does).
+
 Divergence: a residual beyond ``_BIG`` (normalised units) grows only logarithmically past it, and a
 non-finite one reads as the float maximum, so a diverging candidate has a large finite cost and a finite,
 useful Jacobian. The returned ``theta`` is the better of the start and the solver's answer.
@@ -177,8 +180,10 @@ def _solve(
     loss, cost, rss = jax.vmap(_scores, in_axes=(0, 0, None))(pair, vs, boxed)
     better = jnp.all(jnp.isfinite(pair[1])) & (loss[1] <= loss[0])
     pick = jnp.where(better, 1, 0)
-    x0 = jnp.stack([jnp.where(better, s1.x0, s0.x0) for s0, s1 in zip(boxed.simulators(v0), boxed.simulators(v1))]) \
-        if boxed.fit_x0 else jnp.zeros((0, N_STATES), pair.dtype)
+    x0 = jnp.zeros((0, N_STATES), pair.dtype)
+    if boxed.fit_x0:
+        x0 = jnp.stack([jnp.where(better, s1.x0, s0.x0)
+                        for s0, s1 in zip(boxed.simulators(v0), boxed.simulators(v1))])
     return pair[pick], x0, cost[0], cost[pick], rss[0], rss[pick], sol.stats["num_steps"], sol.result
 
 
