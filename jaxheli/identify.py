@@ -118,7 +118,7 @@ def identify(
     start: Float[np.ndarray, "40"] | None = None,
     cost: SearchCost = "pearson",
     polish_objective: PolishObjective = "output-error",
-    polish_steps: int = 40,
+    polish_steps: int = 30,
     polish_rounds: int = 3,
     pem_segment: float = 5.0,
     search_precision: Literal["float32", "float64"] = "float32",

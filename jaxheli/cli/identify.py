@@ -33,8 +33,8 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                    help="what the polish of iwo+polish minimises: output-error (default: normalised output errors, "
                         "initial state estimated, restarts where the model is unstable), pearson (with --cost "
                         "pearson: the paper's pure pipeline) or pem")
-    p.add_argument("--polish-steps", type=int, default=40,
-                   help="Levenberg-Marquardt steps per polish round (default 40)")
+    p.add_argument("--polish-steps", type=int, default=30,
+                   help="Levenberg-Marquardt steps per polish round (default 30)")
     add_sim_options(p)
     p.set_defaults(func=_cmd_identify)
     return p

@@ -17,8 +17,8 @@ The rounds before the last restart where the mode grows more than :data:`GROWTH`
 state (far from the optimum a free initial state lets the fit wander). The last round is the
 maximum-likelihood output error for measurement noise: one run per record unless the mode grows more than
 :data:`FINAL_GROWTH` times over it, the initial states fitted with the parameters. On the default flight (80 s,
-Table 2 truth) three rounds of 40 steps reach the truth's fit % on every channel, where one round of 100 steps
-stalls in a valley of the rotor parameters. Every distinct segment length compiles the solver once.
+Table 2 truth) three rounds of 30 steps from a 100-generation IWO reach the truth's fit % on every channel (20
+steps do not), where one round of 100 steps stalls in a valley of the rotor parameters. Every distinct segment length compiles the solver once.
 """
 
 from __future__ import annotations
@@ -82,7 +82,7 @@ def output_error(
     *,
     rounds: int = 3,
     solver: Solver = "lm",
-    max_steps: int = 40,
+    max_steps: int = 30,
     free: Free = None,
     rtol: float = 1e-8,
     atol: float = 1e-8,
