@@ -72,7 +72,8 @@ def population_cost(thetas: Population, data: FlightData | Any, **options) -> Fl
 
     ``data`` is a flight, with the options of :func:`jaxheli.make_simulator` (``outputs``, ``hold``,
     ``segment``, ...; the cost runs over the chosen output channels), or a :class:`jaxheli.problem.Problem`
-    (no options: its settings hold). Diverging candidates get the worst cost ``4 k``.
+    (no options: its settings hold, the search cost they name included). Diverging candidates get the worst
+    cost (``4 k`` for the paper's, ``inf`` for the output error).
     """
     if isinstance(data, FlightData):
         sim = make_simulator(data, **options)
