@@ -11,6 +11,7 @@ from ._xla import configure as _configure_xla
 _configure_xla()
 
 from .cost import fit_percent as fit_percent, metrics as metrics, paper_cost as paper_cost
+from .cost import nmse as nmse, output_error_cost as output_error_cost
 from .cost import pearson as pearson, rmse as rmse, tic as tic
 from . import distributed as distributed, gap as gap
 from .sim.discretize import Discrete as Discrete, discretize as discretize
@@ -46,9 +47,11 @@ from .model import (
 from .optim import GA as GA, IWO as IWO, minimize as minimize, minimize_trials as minimize_trials
 from .distributed import minimize_trials_distributed as minimize_trials_distributed
 from .optim import pem as pem, polish as polish, standard_errors as standard_errors
+from .optim import cramer_rao_coverage as cramer_rao_coverage, output_error as output_error
 from .sim.population import PopulationCost as PopulationCost, population_cost as population_cost
 from .bounds import Bounds as Bounds
-from .problem import Problem as Problem, Settings as Settings, make_problem as make_problem
+from .problem import Problem as Problem, Records as Records, Settings as Settings, make_problem as make_problem
+from .problem import make_records as make_records
 from .data.preprocess import detrend as detrend, from_samples as from_samples, lowpass as lowpass
 from .data.preprocess import resample as resample, split as split, trim as trim
 from .report import build_report as build_report, write_report as write_report

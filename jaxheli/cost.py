@@ -8,10 +8,16 @@ so a diverging candidate cannot poison a population.
 
 from __future__ import annotations
 
+from typing import Literal
+
 import equinox as eqx
 import jax.numpy as jnp
 
 from ._types import Array, ArrayLike, Bool, Float
+
+SearchCost = Literal["pearson", "output-error"]
+SEARCH_COSTS: tuple[str, ...] = ("pearson", "output-error")
+"""Costs a population search can minimise: the paper's (:func:`paper_cost`) or :func:`output_error_cost`."""
 
 WORST_RHO = -1.0
 WORST_TIC = 1.0
@@ -122,6 +128,21 @@ def nmse(sim: ArrayLike, meas: ArrayLike) -> Float[Array, "*batch k"]:
     den = jnp.sum((meas - jnp.mean(meas, axis=-2, keepdims=True)) ** 2, axis=-2)
     value = num / den
     return jnp.where(jnp.isfinite(value), value, jnp.inf)
+
+
+def output_error_cost(sim: ArrayLike, meas: ArrayLike) -> Float[Array, "*batch"]:
+    """Sum over the channels of :func:`nmse`: squared output errors, each channel normalised by its measured
+    variance (so units do not weigh); 0 is a perfect match, 1 per channel predicts the channel's mean."""
+    return jnp.sum(nmse(sim, meas), axis=-1)
+
+
+def search_cost(kind: SearchCost, sim: ArrayLike, meas: ArrayLike) -> Float[Array, "*batch"]:
+    """The search cost ``kind`` (:data:`SEARCH_COSTS`) of ``sim[..., N, k]`` against ``meas[N, k]``."""
+    if kind == "pearson":
+        return paper_cost(sim, meas)
+    if kind == "output-error":
+        return output_error_cost(sim, meas)
+    raise ValueError(f"search cost must be one of {SEARCH_COSTS}, got {kind!r}")
 
 
 def metrics(sim: ArrayLike, meas: ArrayLike, names: tuple[str, ...] | list[str]) -> dict[str, object]:

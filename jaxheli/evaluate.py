@@ -11,7 +11,7 @@ from ._types import Float
 from .cost import metrics
 from .data.flight import FlightData
 from .model import G_SI, N_PARAMS, PARAM_NAMES, TABLE2, params_array
-from .problem import Problem, as_problem, make_problem
+from .problem import Problem, Records, as_problem, make_problem, parts
 from .sim.initial_state import estimate_x0
 from .sim.simulate import Simulator
 
@@ -49,7 +49,7 @@ def resolve_params(spec: str | Path | np.ndarray | dict) -> Float[np.ndarray, "4
 
 def evaluate(
     params: str | Path | np.ndarray | dict,
-    data: FlightData | Problem,
+    data: FlightData | Problem | Records | list[FlightData],
     *,
     outputs: tuple[str, ...] | list[str] | None = None,
     x0: str | np.ndarray = "estimate",
@@ -60,7 +60,9 @@ def evaluate(
     Args:
         params: anything :func:`resolve_params` takes.
         data: the record to score on: a flight, or a :class:`~jaxheli.problem.Problem` (its channels and
-            simulation settings; ``outputs`` and ``options`` then change its settings as a variant).
+            simulation settings; ``outputs`` and ``options`` then change its settings as a variant); several
+            flights or a :class:`~jaxheli.problem.Records` are scored together, each record simulated from its
+            own initial state and the records' samples pooled.
         outputs: channels to score (default :func:`~jaxheli.data.flight.default_outputs`).
         x0: ``"estimate"`` (least-squares initial state, as MATLAB ``compare``), ``"zero"`` (the paper),
             ``"measured"``, or a 13-vector.
@@ -71,10 +73,13 @@ def evaluate(
     """
     theta = resolve_params(params)
     problem = as_problem(data, outputs=outputs, **options)
-    sim = started_simulator(problem, theta, x0)
-    out = metrics(sim(theta), problem.target, problem.outputs)
-    settings = sim.describe()
+    records = parts(problem)
+    sims = [started_simulator(part, theta, x0) for part in records]
+    y = np.concatenate([np.asarray(sim(theta)) for sim in sims])
+    out = metrics(y, np.concatenate([np.asarray(part.target) for part in records]), problem.outputs)
+    settings = sims[0].describe()
     settings["initial_state"] = x0 if isinstance(x0, str) else "given"
+    settings["records"] = len(records)
     out["simulation"] = settings
     return out
 

@@ -1,8 +1,10 @@
 """One entry point for every identification method: IWO, GA, PEM, IWO + gradient polish.
 
 ``identify(flight, method=...)`` runs the chosen engine (K trials vmapped in one scan for the population
-methods), polishes when asked, computes Cramer-Rao standard errors and 95 % intervals over trials, and
-scores the result on the training flight and, if given, a validation flight. The result object holds
+methods) on its search cost (the paper's Pearson cost by default), polishes when asked (by default on the output
+error, so gains and offsets are identified), computes Cramer-Rao standard errors and 95 % intervals over trials,
+and scores the result on the training flight and, if given, a validation flight (and the truth beside it when it
+is known). The result object holds
 everything :func:`jaxheli.identify_report.save_result` writes (JSON, NPZ, PNG).
 """
 
@@ -10,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Sequence
 from typing import Any, Literal
 
 import jax
@@ -17,16 +20,18 @@ import numpy as np
 import scipy.stats
 
 from ._types import Float
+from .cost import SearchCost
 from .data.flight import FlightData, constant_outputs, default_outputs
 from .evaluate import evaluate
 from .model import G_SI, LOWER, PARAM_NAMES, UPPER
 from .optim.ga import GA
 from .optim.iwo import IWO
 from .optim.pem import pem
-from .optim.polish import polish
+from .optim.output_error import output_error_problem
+from .optim.polish import PolishObjective, polish
 from .optim.run import minimize, minimize_trials
-from .optim.uncertainty import standard_errors
-from .problem import Problem, Settings, make_problem
+from .optim.uncertainty import Uncertainty, cramer_rao_coverage, standard_errors
+from .problem import Problem, Records, as_problem, make_problem, parts
 
 Method = Literal["iwo", "ga", "pem", "iwo+polish"]
 METHODS: tuple[str, ...] = ("iwo", "ga", "pem", "iwo+polish")
@@ -48,6 +53,9 @@ class IdentificationResult:
         polish: the best unpolished parameters and the cost before and after the gradient polish
             (``None`` unless polished).
         seconds: wall time of the fit.
+        truth: when the true parameters are known (synthetic flights): their parameters, their scores as
+            ``train`` / ``validate`` and ``cramer_rao`` (:func:`~jaxheli.optim.uncertainty.cramer_rao_coverage`);
+            else ``None``.
     """
 
     method: str
@@ -63,6 +71,7 @@ class IdentificationResult:
     validate: dict[str, Any] | None
     polish: dict[str, Any] | None
     seconds: float
+    truth: dict[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready content (``result.json``); parameters and intervals named as in :data:`PARAM_NAMES`."""
@@ -78,6 +87,7 @@ class IdentificationResult:
             "validate": self.validate,
             "polish": self.polish,
             "seconds": self.seconds,
+            "truth": self.truth,
         }
 
 
@@ -92,7 +102,7 @@ def intervals95(trial_params: Float[np.ndarray, "K 40"]) -> dict[str, tuple[floa
 
 
 def identify(
-    data: FlightData | Problem,
+    data: FlightData | Sequence[FlightData] | Problem | Records,
     *,
     method: Method = "iwo+polish",
     validate: FlightData | None = None,
@@ -106,10 +116,14 @@ def identify(
     lower: Float[np.ndarray, "40"] = LOWER,
     upper: Float[np.ndarray, "40"] = UPPER,
     start: Float[np.ndarray, "40"] | None = None,
-    polish_steps: int = 100,
+    cost: SearchCost = "pearson",
+    polish_objective: PolishObjective = "output-error",
+    polish_steps: int = 30,
+    polish_rounds: int = 3,
     pem_segment: float = 5.0,
     search_precision: Literal["float32", "float64"] = "float32",
     engine_options: dict[str, Any] | None = None,
+    truth: Float[np.ndarray, "40"] | None = None,
     chunk: int = 50,
     checkpoint: str | None = None,
     resume: bool = False,
@@ -119,35 +133,46 @@ def identify(
 
     Args:
         data: training record: a flight (its problem is built from ``outputs``, ``segment``, ``hold``, ``g``,
-            ``lower``, ``upper``, ``search_precision``), or a :class:`~jaxheli.problem.Problem` whose settings
-            replace those arguments.
-        method: ``"iwo"``, ``"ga"``, ``"pem"`` or ``"iwo+polish"`` (IWO, then optimistix on the same cost).
+            ``lower``, ``upper``, ``cost``, ``search_precision``), several flights (fitted at once: each its own
+            initial state, costs add; :class:`~jaxheli.problem.Records`), or a :class:`~jaxheli.problem.Problem`
+            or :class:`~jaxheli.problem.Records` whose settings replace those arguments.
+        method: ``"iwo"``, ``"ga"``, ``"pem"`` or ``"iwo+polish"`` (IWO, then optimistix on
+            ``polish_objective``).
         validate: optional held-out record, scored with an estimated initial state and from rest.
         iterations: generations of IWO / GA (the paper: 1000).
         trials: independent trials (vmapped); their spread gives the 95 % intervals (the paper: 10).
         seed: PRNG seed; the run is a deterministic function of it.
         outputs: channels of the cost (default: the flight's measured channels without a, b).
-        segment: restart interval of the simulation, s (``None``: the paper's single run from rest).
+        segment: restart interval of the search's simulation, s (``None``: the paper's single run from rest).
         hold, g: simulation settings (:func:`jaxheli.make_simulator`).
         lower, upper: search box of every engine (population, PEM, polish, standard errors; default: the
             authors' bounds).
         start: PEM's start (default: the middle of the bounds; random in the box for trials > 1).
-        polish_steps: Levenberg-Marquardt steps of the polish.
+        cost: what IWO / GA minimise: ``"pearson"`` (the paper's Eq. 7) or ``"output-error"``
+            (:func:`jaxheli.cost.output_error_cost`).
+        polish_objective: ``"output-error"`` (default: normalised output errors, initial state estimated,
+            restarts where the model is unstable, :mod:`jaxheli.optim.output_error`), ``"pearson"`` (the
+            paper's cost: with ``cost="pearson"`` the paper's pure pipeline) or ``"pem"``
+            (:func:`jaxheli.optim.polish.polish`).
+        polish_steps, polish_rounds: Levenberg-Marquardt steps per round, and rounds (output error only).
         pem_segment: predictor restart interval of PEM, s (keeps unstable candidates usable).
         search_precision: arithmetic of the IWO / GA population scoring (float32, the default, is several
             times faster and its costs agree with float64 to 1e-3, see ``tests/test_blocked.py``); the polish,
             PEM and every reported metric run in the session's precision (float64 unless disabled).
         engine_options: further hyperparameters of :class:`~jaxheli.optim.IWO` / :class:`~jaxheli.optim.GA`
             (e.g. ``{"modulation": 3.0}``; default: the paper's settings).
+        truth: the true parameters when known (default: a synthetic flight's ``metadata["truth"]`` when it
+            carries no unmodelled effect); scored beside the result, with the share of identifiable parameters
+            within 3 Cramer-Rao standard errors of it.
         chunk, checkpoint, resume, progress: run control of :func:`jaxheli.optim.run.minimize`.
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if trials < 1 or iterations < 1:
         raise ValueError(f"trials and iterations must be >= 1, got {trials}, {iterations}")
-    problem = data if isinstance(data, Problem) else make_problem(
-        data, Settings(outputs=outputs, segment=segment, hold=hold, g=g, lower=lower, upper=upper,
-                       precision=search_precision))
+    problem = data if isinstance(data, (Problem, Records)) else as_problem(
+        data, None, outputs=outputs, segment=segment, hold=hold, g=g, lower=lower, upper=upper,
+        precision=search_precision, cost=cost)
     settings = problem.settings
     t0 = time.perf_counter()
     key = jax.random.PRNGKey(seed)
@@ -156,30 +181,26 @@ def identify(
     if method == "pem":
         fitted = problem.variant(segment=pem_segment, x0="measured")
         trial_params, trial_costs = _pem_trials(fitted, key, trials, start)
+        scored = fitted
     else:
-        fitted = problem.variant(x0="zero")
+        search = problem.variant(x0="zero")
         bounds = problem.bounds
         engine_type = IWO if method != "ga" else GA
         engine = engine_type(lower=bounds.lower, upper=bounds.upper, iterations=iterations, **(engine_options or {}))
         keys = jax.random.split(key, trials)
         run_options = {"chunk": chunk, "progress": progress, "checkpoint": checkpoint, "resume": resume}
-        cost_fn = fitted.population_cost()
+        cost_fn = search.population_cost()
         run = (minimize_trials(engine, cost_fn, keys, **run_options) if trials > 1
                else minimize(engine, cost_fn, keys[0], **run_options))
         trial_params = np.asarray(run.best_theta).reshape(trials, -1)
         trial_costs = np.asarray(run.best_cost).reshape(trials)
         history = np.asarray(run.history).reshape(trials, -1)
+        fitted = scored = search
         if method == "iwo+polish":
-            polished = [polish(th, fitted, max_steps=polish_steps) for th in trial_params]
-            best_before = int(np.argmin(trial_costs))
-            polish_info = {
-                "params_before": dict(zip(PARAM_NAMES, map(float, trial_params[best_before]))),
-                "cost_before": float(trial_costs[best_before]),
-                "cost_after": float(min(p.cost for p in polished)),
-                "steps": [p.n_steps for p in polished],
-            }
-            trial_params = np.stack([p.theta for p in polished])
-            trial_costs = np.array([p.cost for p in polished])
+            trial_params, trial_costs, polish_info = _polish_trials(
+                search, trial_params, trial_costs, polish_objective, polish_steps, polish_rounds)
+            if polish_objective == "output-error":
+                fitted = output_error_problem(search, trial_params[int(np.argmin(trial_costs))])
     best = int(np.argmin(trial_costs))
     params = trial_params[best]
     seconds = time.perf_counter() - t0
@@ -187,11 +208,14 @@ def identify(
     record = {
         "method": method, "iterations": iterations, "trials": trials, "outputs": list(problem.outputs),
         "segment": settings.segment, "hold": settings.hold, "g": settings.g, "pem_segment": pem_segment,
-        "polish_steps": polish_steps, "train_source": str(problem.source),
+        "cost": settings.cost, "polish_objective": polish_objective if method == "iwo+polish" else None,
+        "polish_steps": polish_steps, "polish_rounds": polish_rounds, "train_source": str(problem.source),
         "validate_source": None if validate is None else validate.source,
         "x64": bool(jax.config.jax_enable_x64), "search_precision": settings.precision,
         "engine_options": dict(engine_options or {}),
+        "standard_errors": [part.sim.describe() for part in parts(fitted)],
     }
+    truth = _known_truth(data) if truth is None else np.asarray(truth, dtype=np.float64)
     return IdentificationResult(
         method=method,
         seed=seed,
@@ -202,34 +226,89 @@ def identify(
         history=history,
         intervals95=intervals95(trial_params),
         stderr=dict(zip(PARAM_NAMES, map(float, unc.stderr))),
-        train=evaluate(params, fitted, x0=fitted.settings.x0),
+        train=scores(params, scored),
         validate=None if validate is None else validation_block(params, validate, problem),
         polish=polish_info,
         seconds=seconds,
+        truth=None if truth is None else _truth_block(truth, unc, scored, validate, problem),
     )
 
 
+def scores(params: Float[np.ndarray, "40"], problem: Problem | Records) -> dict[str, Any]:
+    """Metrics of ``params`` on ``problem``'s record (:func:`jaxheli.evaluate`): initial state estimated, and
+    from rest under ``"zero_initial_state"`` (the paper's convention)."""
+    block = evaluate(params, problem, x0="estimate")
+    block["zero_initial_state"] = evaluate(params, problem, x0="zero")
+    return block
+
+
+def _polish_trials(
+    search: Problem | Records, trial_params: np.ndarray, trial_costs: np.ndarray, objective: PolishObjective,
+    steps: int, rounds: int,
+) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """Polish every trial; each trial's cost becomes its polished objective (the paper's cost for
+    ``"pearson"``, else the normalised sum of squares per sample, :func:`jaxheli.cost.output_error_cost`)."""
+    polished = [polish(th, search, objective=objective, max_steps=steps, rounds=rounds) for th in trial_params]
+    costs = np.array([p.cost if objective == "pearson" else p.rss / search.n_samples for p in polished])
+    before, after = int(np.argmin(trial_costs)), int(np.argmin(costs))
+    search_costs = np.asarray(search.population_cost()(np.stack([trial_params[before], polished[after].theta])))
+    info = {
+        "objective": objective,
+        "params_before": dict(zip(PARAM_NAMES, map(float, trial_params[before]))),
+        "cost_before": float(search_costs[0]),
+        "cost_after": float(search_costs[1]),
+        "objective_before": float(polished[before].cost_start if objective == "pearson"
+                                  else polished[before].rss_start / search.n_samples),
+        "objective_after": float(costs[after]),
+        "steps": [p.n_steps for p in polished],
+        "rounds": polished[after].settings.get("rounds"),
+    }
+    return np.stack([p.theta for p in polished]), costs, info
+
+
+def _known_truth(data: FlightData | Sequence[FlightData] | Problem | Records) -> np.ndarray | None:
+    """Synthetic flights' true parameters, when they all have the same and carry no unmodelled effect."""
+    flights = [data] if isinstance(data, FlightData) else list(data) if isinstance(data, (list, tuple)) else []
+    truths = {None if f.metadata.get("effect") is not None else _tuple(f.metadata.get("truth")) for f in flights}
+    truth = truths.pop() if len(truths) == 1 else None
+    return None if truth is None else np.asarray(truth, dtype=np.float64)
+
+
+def _tuple(values: list[float] | None) -> tuple[float, ...] | None:
+    return None if values is None else tuple(values)
+
+
+def _truth_block(
+    truth: np.ndarray, unc: Uncertainty, scored: Problem | Records, validate: FlightData | None,
+    problem: Problem | Records,
+) -> dict[str, Any]:
+    """The truth's parameters and scores (as the result's), and its distance in standard errors."""
+    return {
+        "parameters": dict(zip(PARAM_NAMES, map(float, truth))),
+        "train": scores(truth, scored),
+        "validate": None if validate is None else validation_block(truth, validate, problem),
+        "cramer_rao": cramer_rao_coverage(unc, truth),
+    }
+
+
 def validation_block(
-    params: Float[np.ndarray, "40"], flight: FlightData, problem: Problem | tuple[str, ...], **options
+    params: Float[np.ndarray, "40"], flight: FlightData, problem: Problem | Records | tuple[str, ...], **options
 ) -> dict[str, Any]:
     """Scores on a held-out flight: initial state estimated (default) and from rest (the paper).
 
     ``problem`` is the training problem (its scored channels, hold, g and segment apply) or, with
     ``options`` (:class:`~jaxheli.problem.Settings` fields), the scored channels."""
-    if isinstance(problem, Problem):
+    if isinstance(problem, (Problem, Records)):
         outputs, options = problem.outputs, {"hold": problem.settings.hold, "g": problem.settings.g,
                                              "segment": problem.settings.segment}
     else:
         outputs = tuple(problem)
     flat = constant_outputs(flight)
     chans = tuple(c for c in outputs if c in flight.output_names and c not in flat) or default_outputs(flight)
-    held_out = make_problem(flight, outputs=chans, **options)
-    block = evaluate(params, held_out, x0="estimate")
-    block["zero_initial_state"] = evaluate(params, held_out, x0="zero")
-    return block
+    return scores(params, make_problem(flight, outputs=chans, **options))
 
 
-def _pem_trials(problem: Problem, key, trials: int, start) -> tuple[np.ndarray, np.ndarray]:
+def _pem_trials(problem: Problem | Records, key, trials: int, start) -> tuple[np.ndarray, np.ndarray]:
     """PEM from the given start (or the middle of the box), plus random starts in the box for further trials."""
     mid = problem.bounds.midpoint() if start is None else np.asarray(start, dtype=np.float64)
     starts = [mid] + list(problem.bounds.uniform(k, 1)[0] for k in jax.random.split(key, trials - 1)) \

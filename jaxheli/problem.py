@@ -1,4 +1,5 @@
-"""What is solved, apart from how: one flight (or record), its settings and the arrays every engine needs.
+"""What is solved, apart from how: one flight (or record), its settings and the arrays every engine needs; several
+records fitted at once (:class:`Records`).
 
 A :class:`Problem` is built once from a flight and a frozen, serialisable :class:`Settings` (scored channels,
 input hold, gravity, restart segment, initial-state rule, population precision, search box). It holds the
@@ -14,14 +15,16 @@ compiled engine.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from typing import Any, Literal
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import Array, Float
+from ._types import Array, ArrayLike, Float
 from .bounds import Bounds
+from .cost import SEARCH_COSTS, SearchCost
 from .data.flight import FlightData, FlightDataError, constant_outputs, default_outputs
 from .model import G_SI, LOWER, UPPER
 from .sim.discretize import Hold
@@ -42,6 +45,8 @@ class Settings:
         segment: restart interval, s (multiple shooting); ``None`` for one run from the start (the paper).
         x0: initial state of each run, ``"zero"`` (the paper) or ``"measured"``.
         precision: arithmetic of the population cost (``None``: the session's precision).
+        cost: what the population cost scores, ``"pearson"`` (the paper's Eq. 7) or ``"output-error"``
+            (:func:`jaxheli.cost.output_error_cost`).
         lower, upper: search box, physical units, :data:`jaxheli.PARAM_NAMES` order (default: the authors').
         simulator: ``"auto"``, ``"scan"`` or ``"blocked"`` (:func:`jaxheli.make_simulator`'s ``method``).
     """
@@ -52,6 +57,7 @@ class Settings:
     segment: float | None = None
     x0: InitialState = "zero"
     precision: Precision | None = None
+    cost: SearchCost = "pearson"
     lower: tuple[float, ...] = tuple(LOWER.tolist())
     upper: tuple[float, ...] = tuple(UPPER.tolist())
     simulator: Method = "auto"
@@ -63,6 +69,8 @@ class Settings:
         object.__setattr__(self, "upper", tuple(float(v) for v in np.asarray(self.upper).ravel()))
         if self.precision not in (None, "float32", "float64"):
             raise ValueError(f"precision must be 'float32', 'float64' or None, got {self.precision!r}")
+        if self.cost not in SEARCH_COSTS:
+            raise ValueError(f"cost must be one of {SEARCH_COSTS}, got {self.cost!r}")
 
     @property
     def bounds(self) -> Bounds:
@@ -142,21 +150,28 @@ class Problem(eqx.Module):
 
     def variant(self, **changes: Any) -> Problem:
         """The same record under changed simulation settings (``hold``, ``g``, ``segment``, ``x0``,
-        ``simulator``) or precision and bounds; the scored channels cannot change (they need the flight)."""
+        ``simulator``) or precision, cost and bounds; the scored channels cannot change (they need the flight).
+        An initial state given by :meth:`start_from` stays unless ``x0`` changes."""
         if "outputs" in changes and tuple(changes["outputs"]) != self.outputs:
             raise ValueError("Problem.variant: scored channels cannot change; build a new problem from the flight")
         settings = self.settings.replace(**changes)
-        sim = self.sim.configure(outputs=self.outputs, g=settings.g, hold=settings.hold, x0=settings.x0,
+        given = self.sim.initial == "given" and "x0" not in changes
+        sim = self.sim.configure(outputs=self.outputs, g=settings.g, hold=settings.hold,
+                                 x0=self.sim.x0 if given else settings.x0,
                                  segment=settings.segment, reset=self.sim.reset, method=settings.simulator)
         return dataclasses.replace(self, sim=sim, bounds=settings.bounds, settings=settings)
+
+    def start_from(self, x0: Float[ArrayLike, "13"]) -> Problem:
+        """The same record simulated from the initial state ``x0[13]`` (its restarts unchanged)."""
+        return dataclasses.replace(self, sim=self.sim.replace_x0(x0))
 
     def constant_channels(self) -> list[str]:
         """Scored channels whose measurement never changes (no scale, no correlation)."""
         return [c for c, s in zip(self.outputs, np.asarray(self.scale)) if not s > 0]
 
     def population_cost(self) -> PopulationCost:
-        """``thetas[P, 40] -> cost[P]``, the paper's cost in the settings' precision (one jitted call)."""
-        return PopulationCost(self.sim, self.target, self.settings.precision)
+        """``thetas[P, 40] -> cost[P]``, the settings' search cost in their precision (one jitted call)."""
+        return PopulationCost(self.sim, self.target, self.settings.precision, self.settings.cost)
 
     def describe(self) -> dict[str, Any]:
         """Settings and simulator in words and numbers, for result files."""
@@ -175,17 +190,104 @@ def make_problem(flight: FlightData, settings: Settings | None = None, **changes
                    settings.bounds, settings, Source(flight.source))
 
 
-def as_problem(data: FlightData | Problem, defaults: dict[str, Any] | None = None, **settings: Any) -> Problem:
-    """The :class:`Problem` an engine works on.
+class Records(eqx.Module):
+    """Several records fitted at once under one :class:`Settings`: one :class:`Problem` per record (each with its
+    own simulator, initial state, target and channel scales); every cost is the sum of the records' costs.
+
+    Build it with :func:`make_records`. It offers what the engines use of a problem (``outputs``, ``settings``,
+    ``bounds``, ``n_samples``, :meth:`variant`, :meth:`population_cost`, ...); :func:`parts` gives the records
+    of either kind.
+    """
+
+    parts: tuple[Problem, ...]
+
+    def __check_init__(self) -> None:
+        if not self.parts or len({p.outputs for p in self.parts}) != 1:
+            raise ValueError("Records: need at least one record, all scoring the same channels")
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        """The scored channels (every record's)."""
+        return self.parts[0].outputs
+
+    @property
+    def settings(self) -> Settings:
+        """The settings every record shares."""
+        return self.parts[0].settings
+
+    @property
+    def bounds(self) -> Bounds:
+        """The search box."""
+        return self.parts[0].bounds
+
+    @property
+    def source(self) -> Source:
+        """The records' sources, joined."""
+        return Source(" + ".join(str(p.source) for p in self.parts))
+
+    @property
+    def n_samples(self) -> int:
+        """Samples of all records together."""
+        return sum(p.n_samples for p in self.parts)
+
+    def variant(self, **changes: Any) -> Records:
+        """Every record under changed settings (:meth:`Problem.variant`)."""
+        return Records(tuple(p.variant(**changes) for p in self.parts))
+
+    def constant_channels(self) -> list[str]:
+        """Scored channels constant in some record."""
+        return sorted({c for p in self.parts for c in p.constant_channels()}, key=self.outputs.index)
+
+    def population_cost(self) -> SummedCost:
+        """``thetas[P, 40] -> cost[P]``: the sum of the records' search costs."""
+        return SummedCost(tuple(p.population_cost() for p in self.parts))
+
+    def describe(self) -> dict[str, Any]:
+        """Each record's :meth:`Problem.describe`."""
+        return {"source": str(self.source), "records": [p.describe() for p in self.parts]}
+
+
+class SummedCost(eqx.Module):
+    """``thetas[P, 40] -> cost[P]``: the sum of several records' population costs."""
+
+    costs: tuple[PopulationCost, ...]
+
+    def __call__(self, thetas: Array) -> Float[Array, "P"]:
+        return sum(cost(thetas) for cost in self.costs)
+
+
+def parts(problem: Problem | Records) -> tuple[Problem, ...]:
+    """The records of a problem: itself, or a :class:`Records`' parts."""
+    return problem.parts if isinstance(problem, Records) else (problem,)
+
+
+def make_records(flights: Sequence[FlightData], settings: Settings | None = None, **changes: Any) -> Records:
+    """The :class:`Records` of ``flights`` under ``settings`` with ``changes`` (scored channels: ``outputs``, or
+    the first flight's measured channels)."""
+    if not flights:
+        raise ValueError("make_records: need at least one flight")
+    settings = (settings or Settings()).replace(**changes)
+    if settings.outputs is None:
+        settings = settings.replace(outputs=default_outputs(flights[0]))
+    return Records(tuple(make_problem(f, settings) for f in flights))
+
+
+def as_problem(
+    data: FlightData | Sequence[FlightData] | Problem | Records, defaults: dict[str, Any] | None = None,
+    **settings: Any,
+) -> Problem | Records:
+    """The :class:`Problem` (or :class:`Records`) an engine works on.
 
     A flight becomes the problem of ``Settings(**defaults)`` with ``settings`` (``outputs=None``: the flight's
-    measured channels); a problem is taken as it is, or as its :meth:`~Problem.variant` under ``settings``
-    (its scored channels stay; ``defaults`` are not applied to it).
+    measured channels), several flights their :class:`Records`; a problem is taken as it is, or as its
+    :meth:`~Problem.variant` under ``settings`` (its scored channels stay; ``defaults`` are not applied to it).
     """
-    if isinstance(data, Problem):
+    if isinstance(data, (Problem, Records)):
         if settings.get("outputs") is None or tuple(settings["outputs"]) == data.outputs:
             settings.pop("outputs", None)
         return data.variant(**settings) if settings else data
+    if isinstance(data, (list, tuple)) and all(isinstance(f, FlightData) for f in data):
+        return make_records(data, Settings(**(defaults or {})), **settings)
     if not isinstance(data, FlightData):
         raise TypeError(f"expected a FlightData or a Problem, got {type(data).__name__}")
     flat = [c for c in settings.get("outputs") or () if c in constant_outputs(data)]

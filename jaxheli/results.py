@@ -4,6 +4,7 @@ and PNG plots."""
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -25,29 +26,45 @@ them, and ``jaxheli report`` reads them rather than the raw source files."""
 
 
 def _verification(result: IdentificationResult, flight: FlightData, x0, path: Path, title: str) -> Path:
-    """Plot ``PLOT_CHANNELS`` as the result was scored on ``flight``, from ``x0`` (``"estimate"``, ``"zero"``)."""
+    """Plot ``PLOT_CHANNELS`` as the result was scored on ``flight``, from ``x0`` (``"estimate"``, ``"zero"``),
+    with the truth's response beneath when it is known."""
     scored = tuple(c for c in result.settings["outputs"] if c in flight.output_names) or default_outputs(flight)
     chans = tuple(c for c in PLOT_CHANNELS if c in scored) or scored
-    y = simulate_as_scored(result.params, result.settings, flight, chans, x0)
-    return plot_time_domain(flight.time, flight.select(chans).outputs, {result.method: y}, chans, path, title)
+    truth = {} if result.truth is None else {
+        "truth": simulate_as_scored(result.truth["parameters"], result.settings, flight, chans, x0)}
+    models = {**truth, result.method: simulate_as_scored(result.params, result.settings, flight, chans, x0)}
+    return plot_time_domain(flight.time, flight.select(chans).outputs, models, chans, path, title)
 
 
 def save_result(
-    result: IdentificationResult, out_dir: str | Path, train: FlightData, validate: FlightData | None = None
+    result: IdentificationResult,
+    out_dir: str | Path,
+    train: FlightData | Sequence[FlightData],
+    validate: FlightData | None = None,
 ) -> list[Path]:
     """Save ``result`` under ``out_dir``; returns the files written.
 
     Writes ``result.json`` (with each flight's source, preprocessing steps and load warnings under
     ``provenance``), ``result.npz``, ``train_flight.npz`` / ``validate_flight.npz`` (the flights as the fit and
-    the scores saw them) and the PNG plots (time-domain verification, convergence).
+    the scores saw them; further training records as ``train_flight_2.npz``, ... listed in
+    ``data["train_records"]``) and the PNG plots (time-domain verification per record, convergence).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    flights = {role: f for role, f in (("train", train), ("validate", validate)) if f is not None}
+    records = [train] if isinstance(train, FlightData) else list(train)
+    names = [_numbered(FLIGHT_FILES["train"], k) for k in range(len(records))]
     files = [out / "result.json", out / "result.npz"]
-    files += [save_npz(f, out / FLIGHT_FILES[role]) for role, f in flights.items()]
+    files += [save_npz(f, out / name) for f, name in zip(records, names)]
     content = result.to_json()
-    content["data"] = {role: FLIGHT_FILES[role] for role in flights}
+    content["data"] = {"train": names[0]}
+    if len(records) > 1:
+        content["data"]["train_records"] = names
+    if validate is not None:
+        files.append(save_npz(validate, out / FLIGHT_FILES["validate"]))
+        content["data"]["validate"] = FLIGHT_FILES["validate"]
+    flights = {("train" if k == 0 else f"train_{k + 1}"): f for k, f in enumerate(records)}
+    if validate is not None:
+        flights["validate"] = validate
     content["provenance"] = {role: {"source": f.source, "preprocessing": f.metadata.get("preprocessing", []),
                                     "warnings": f.metadata.get("warnings", [])} for role, f in flights.items()}
     files[0].write_text(json.dumps(content, indent=2, default=str))
@@ -60,7 +77,10 @@ def save_result(
         history=result.history,
         stderr=np.array([result.stderr[n] for n in PARAM_NAMES]),
     )
-    files.append(_verification(result, train, "zero", out / "verification_train.png", f"{result.method}: training flight"))
+    for k, flight in enumerate(records):
+        files.append(_verification(result, flight, "estimate", out / _numbered("verification_train.png", k),
+                                   f"{result.method}: training flight{f' {k + 1}' if len(records) > 1 else ''}"
+                                   " (initial state estimated)"))
     if validate is not None:
         files.append(
             _verification(result, validate, "estimate", out / "verification_validate.png",
@@ -70,3 +90,9 @@ def save_result(
         curves = {f"trial {k}": h for k, h in enumerate(result.history)}
         files.append(plot_convergence(curves, out / "convergence.png", f"{result.method} convergence"))
     return files
+
+
+def _numbered(name: str, k: int) -> str:
+    """``name`` for the first of several files, ``stem_{k+1}.suffix`` for the others."""
+    path = Path(name)
+    return name if k == 0 else f"{path.stem}_{k + 1}{path.suffix}"

@@ -1,4 +1,5 @@
-"""Polishing a start with optimistix on the paper's cost or the PEM objective: lower, never higher."""
+"""Polishing a start with optimistix on the output error (the default), the paper's cost or the PEM objective:
+lower, never higher."""
 
 import numpy as np
 import pytest
@@ -6,7 +7,7 @@ import pytest
 from jaxheli.cost import paper_cost
 from jaxheli.synth.excitation import multisine
 from jaxheli.data.flight import FlightData
-from jaxheli.model import LOWER, TABLE2, UPPER, params_array
+from jaxheli.model import LOWER, PARAM_NAMES, TABLE2, UPPER, params_array
 from jaxheli.bounds import Bounds
 from jaxheli.optim.polish import polish
 from jaxheli.sim.simulate import simulate
@@ -33,7 +34,7 @@ def _perturbed(seed: int) -> np.ndarray:
 
 def test_polish_lowers_the_paper_cost(flight):
     start = _perturbed(0)
-    res = polish(start, flight, max_steps=STEPS)
+    res = polish(start, flight, objective="pearson", max_steps=STEPS)
     assert res.cost < 0.5 * res.cost_start
     # The reported costs are the paper's cost of the same simulation (one open-loop run from rest).
     costs = [paper_cost(simulate(theta, flight), flight.outputs) for theta in (start, res.theta)]
@@ -49,10 +50,25 @@ def test_polish_never_raises_the_cost(flight, start):
         "perturbed": _perturbed(1),
         "unstable": params_array({"Xu": 1.0, "Zw": 1.0, "Nr": 10.0, "Krfb": 20.0}, TABLE2),
     }[start]
-    res = polish(theta0, flight, max_steps=STEPS)
+    res = polish(theta0, flight, objective="pearson", max_steps=STEPS)
     assert np.isfinite(res.cost) and res.cost <= res.cost_start
     if res.cost == res.cost_start:
         np.testing.assert_array_equal(res.theta, theta0)
+    # the default, output error (its last round alone, the maximum-likelihood one): never raises its objective
+    res = polish(theta0, flight, max_steps=STEPS, rounds=1)
+    assert all(np.isfinite(r["rss"]) and r["rss"] <= r["rss_start"] for r in res.settings["rounds"])
+
+
+def test_default_polish_identifies_the_amplitude(flight):
+    """A start with the truth's shapes at half its control power: Pearson cannot see the gain, output error can."""
+    start = TABLE2.copy()
+    for name in ("Alat", "Alon", "Blat", "Blon", "Zcol", "Nped", "Ncol", "Clon", "Dlat"):
+        start[PARAM_NAMES.index(name)] *= 0.5
+    res = polish(start, flight, max_steps=STEPS)
+    assert res.settings["objective"] == "output-error"
+    y = np.asarray(simulate(res.theta, flight))
+    gain = np.std(y, axis=0) / np.std(flight.outputs, axis=0)
+    np.testing.assert_allclose(gain, 1.0, atol=0.05)
 
 
 def test_polish_on_the_pem_objective(flight):

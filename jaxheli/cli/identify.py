@@ -6,7 +6,9 @@ import argparse
 import json
 from pathlib import Path
 
+from ..cost import SEARCH_COSTS
 from ..flights import DEFAULT_DATA
+from ..optim.polish import POLISH_OBJECTIVES
 from ._options import add_load_options, add_sim_options, outputs, read_flight, sim_options
 
 
@@ -14,9 +16,11 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     """Register ``identify`` on the ``jaxheli`` command line."""
     p = subparsers.add_parser("identify", help="fit the 40 parameters to a flight (IWO, GA, PEM, IWO + polish)")
     p.add_argument("--method", choices=("iwo", "ga", "pem", "iwo+polish"), default="iwo+polish")
-    p.add_argument("--train", default=DEFAULT_DATA,
-                   help="training flight file (a 'jaxheli prepare' NPZ too) or 'default' (the embedded flight)")
-    p.add_argument("--validate", default=None, help="validation flight file (optional)")
+    p.add_argument("--train", nargs="+", default=[DEFAULT_DATA], metavar="FILE[:t0-t1]",
+                   help="training flight file(s) (a 'jaxheli prepare' NPZ too) or 'default' (the embedded flight), "
+                        "each optionally cut to a window t0-t1 s; several records are fitted at once (each its own "
+                        "initial state, costs add)")
+    p.add_argument("--validate", default=None, metavar="FILE[:t0-t1]", help="validation flight file (optional)")
     p.add_argument("--out", default="jaxheli-result", help="output folder (result.json, result.npz, PNGs)")
     p.add_argument("--iterations", type=int, default=1000, help="IWO / GA generations (default 1000, the paper)")
     p.add_argument("--trials", type=int, default=1, help="independent trials for 95%% intervals (the paper: 10)")
@@ -27,6 +31,14 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     p.add_argument("--search-precision", choices=("float32", "float64"), default="float32",
                    help="arithmetic of the IWO / GA population scoring (default float32: fast, checked against float64)")
     add_load_options(p)
+    p.add_argument("--cost", choices=SEARCH_COSTS, default="pearson",
+                   help="what IWO / GA minimise: pearson (default, the paper's Eq. 7) or output-error")
+    p.add_argument("--polish-objective", choices=POLISH_OBJECTIVES, default="output-error",
+                   help="what the polish of iwo+polish minimises: output-error (default: normalised output errors, "
+                        "initial state estimated, restarts where the model is unstable), pearson (with --cost "
+                        "pearson: the paper's pure pipeline) or pem")
+    p.add_argument("--polish-steps", type=int, default=30,
+                   help="Levenberg-Marquardt steps per polish round (default 30)")
     add_sim_options(p)
     p.set_defaults(func=_cmd_identify)
     return p
@@ -57,13 +69,17 @@ def add_synth_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     return p
 
 
-def _print_metrics(title: str, block: dict) -> None:
+def _print_metrics(title: str, block: dict, truth: dict | None = None) -> None:
+    """Pearson, TIC, RMSE and fit % per channel, and the paper's cost; the truth's rows beside when given."""
     chans = list(block["pearson"])
     print(title)
-    print("  channel  " + "".join(f"{c:>9}" for c in chans))
-    for key, label, fmt in (("pearson", "pearson", "9.4f"), ("tic", "TIC", "9.4f"), ("fit_percent", "fit %", "9.1f")):
-        print(f"  {label:<9}" + "".join(f"{block[key][c]:{fmt}}" for c in chans))
-    print(f"  cost (paper Eq. 7): {block['cost']:.6g}")
+    print("  channel     " + "".join(f"{c:>9}" for c in chans))
+    for key, label, fmt in (("pearson", "pearson", "9.4f"), ("tic", "TIC", "9.4f"), ("rmse", "RMSE", "9.4f"),
+                            ("fit_percent", "fit %", "9.1f")):
+        print(f"  {label:<12}" + "".join(f"{block[key][c]:{fmt}}" for c in chans))
+        if truth is not None:
+            print(f"  {'  truth':<12}" + "".join(f"{truth[key][c]:{fmt}}" for c in chans))
+    print(f"  cost (paper Eq. 7): {block['cost']:.6g}" + ("" if truth is None else f" (truth {truth['cost']:.6g})"))
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
@@ -85,8 +101,9 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
     if args.checkpoint_every < 1:
         raise ValueError(f"--checkpoint-every: must be >= 1 generation, got {args.checkpoint_every}")
-    train = read_flight(args.train, args)
-    validate = None if not args.validate else train if args.validate == args.train else read_flight(args.validate, args)
+    records = [read_flight(spec, args) for spec in args.train]
+    train = records[0] if len(records) == 1 else records
+    validate = None if not args.validate else read_flight(args.validate, args)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     result = identify(
@@ -97,18 +114,33 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         trials=args.trials,
         seed=args.seed,
         outputs=outputs(args.outputs),
+        cost=args.cost,
+        polish_objective=args.polish_objective,
+        polish_steps=args.polish_steps,
         checkpoint=str(out / "checkpoint.eqx") if args.method != "pem" else None,
         resume=args.resume,
         chunk=args.checkpoint_every,
         search_precision=args.search_precision,
         **sim_options(args),
     )
-    _print_metrics(f"{args.method} on the training flight {train.source}", result.train)
+    truth = result.truth or {}
+    sources = " + ".join(f.source for f in records)
+    _print_metrics(f"{args.method} on the training flight {sources}, initial state estimated"
+                   + (" (truth: the flight's true model)" if truth else ""), result.train, truth.get("train"))
     if result.validate is not None:
-        _print_metrics(f"validation flight {validate.source}, initial state estimated", result.validate)
-        _print_metrics("validation flight, from rest (the paper)", result.validate["zero_initial_state"])
+        _print_metrics(f"validation flight {validate.source}, initial state estimated", result.validate,
+                       truth.get("validate"))
+        _print_metrics("validation flight, from rest (the paper)", result.validate["zero_initial_state"],
+                       (truth.get("validate") or {}).get("zero_initial_state"))
     if result.polish:
-        print(f"polish: cost {result.polish['cost_before']:.6g} -> {result.polish['cost_after']:.6g}")
+        p = result.polish
+        print(f"polish ({p['objective']}): objective {p['objective_before']:.6g} -> {p['objective_after']:.6g}; "
+              f"search cost {p['cost_before']:.6g} -> {p['cost_after']:.6g}")
+    if truth:
+        cr = truth["cramer_rao"]
+        print(f"truth within {cr['k']:g} Cramer-Rao standard errors: {len(cr['within'])} of "
+              f"{len(cr['identifiable'])} identifiable parameters ({100 * cr['fraction']:.0f} %)")
+    print(f"fit: {result.seconds:.1f} s")
     for path in save_result(result, out, train, validate):
         print(f"wrote {path}")
     return 0

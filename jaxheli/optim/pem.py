@@ -12,6 +12,9 @@ slightly, and its answer is clipped into the box. Unlike a sigmoid map ``lower +
 keeps unit slope at and near a bound (a sigmoid flattens there and froze parameters that started within
 0.1 % of a bound, e.g. ``Nr`` at -10, in our tests).
 
+Several records (:class:`jaxheli.problem.Records`) concatenate their residuals, so the sums of squares add; the
+initial state of each can be fitted with the parameters (``fit``'s ``fit_x0``, as the output-error polish does).
+
 Divergence: a residual beyond ``_BIG`` (normalised units) grows only logarithmically past it, and a
 non-finite one reads as the float maximum, so a diverging candidate has a large finite cost and a finite,
 useful Jacobian. The returned ``theta`` is the better of the start and the solver's answer.
@@ -23,6 +26,7 @@ import dataclasses
 from typing import Any, Literal
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import lineax as lx
 import numpy as np
@@ -32,8 +36,9 @@ from .._types import Array, ArrayLike, Float
 from ..bounds import Bounds, Free
 from ..cost import paper_cost, pearson
 from ..data.flight import FlightData
-from ..model import N_PARAMS, PARAM_NAMES
-from ..problem import Problem, as_problem
+from ..model import N_PARAMS, N_STATES, PARAM_NAMES
+from ..problem import Problem, Records, as_problem, parts
+from ..sim.simulate import Simulator
 
 Solver = Literal["lm", "gn"]
 
@@ -51,9 +56,9 @@ def pearson_residuals(problem: Problem, y: Float[Array, "*batch N k"]) -> Float[
     return 1.0 - pearson(y, problem.target)
 
 
-def residuals(problem: Problem, theta: Float[Array, "40"]) -> Float[Array, " Nk"]:
-    """PEM residuals of one parameter vector."""
-    return pem_residuals(problem, problem.sim(theta))
+def residuals(problem: Problem | Records, theta: Float[Array, "40"]) -> Float[Array, " Nk"]:
+    """PEM residuals of one parameter vector (every record's, concatenated)."""
+    return jnp.concatenate([pem_residuals(part, part.sim(theta)) for part in parts(problem)], axis=-1)
 
 
 def _compress(r: Array) -> Array:
@@ -68,7 +73,9 @@ PEM_DEFAULTS: dict[str, Any] = {"segment": 1.0, "x0": "measured"}
 """PEM's predictor when it is handed a flight: restarts from the measured states every second."""
 
 
-def fitted_problem(data: FlightData | Problem, defaults: dict[str, Any] | None = None, **settings: Any) -> Problem:
+def fitted_problem(
+    data: FlightData | Problem | Records, defaults: dict[str, Any] | None = None, **settings: Any
+) -> Problem | Records:
     """The problem a least-squares engine fits: :func:`~jaxheli.problem.as_problem` on the step-by-step scan
     simulator (under linearise/vmap/transpose it compiles ~30 % faster than "blocked"), with a clear error
     when a fitted channel is constant (its normalised residual is undefined)."""
@@ -90,55 +97,90 @@ Objective = Literal["pem", "pearson"]
 
 
 class _Boxed(eqx.Module):
-    """An objective's residuals as a function of the unit coordinates ``u`` of the free axes.
+    """An objective's residuals as a function of ``v``: the unit coordinates of the free axes, then (``fit_x0``)
+    each record's 13-vector initial state, physical units.
 
     ``PENALTY (u - clip(u))`` is appended to the residuals: zero in the box, it makes the sum of squares
     rise steeply (but smoothly, C1) past a bound, so the solver may overshoot a bound only slightly and
     the answer is clipped into the box.
     """
 
-    problem: Problem
+    problem: Problem | Records
     base: Float[Array, "40"]
     free: tuple[bool, ...] = eqx.field(static=True)
     objective: Objective = eqx.field(static=True)
+    fit_x0: bool = eqx.field(static=True, default=False)
 
-    def theta(self, u: Float[Array, "free"]) -> Float[Array, "40"]:
-        """Physical parameters: the free axes from ``u`` (unclipped), the others from ``base``."""
+    @property
+    def n_free(self) -> int:
+        return sum(self.free)
+
+    def theta(self, v: Float[Array, " n"]) -> Float[Array, "40"]:
+        """Physical parameters: the free axes from ``v`` (unclipped), the others from ``base``."""
         mask = np.array(self.free)
         bounds = self.problem.bounds
-        unit = bounds.to_unit(self.base).at[np.flatnonzero(mask)].set(u)
+        unit = bounds.to_unit(self.base).at[np.flatnonzero(mask)].set(v[: self.n_free])
         return jnp.where(mask, bounds.from_unit(unit), self.base)
 
-    def u0(self) -> Float[Array, "free"]:
-        return self.problem.bounds.to_unit(self.base)[np.flatnonzero(np.array(self.free))]
+    def v0(self) -> Float[Array, " n"]:
+        """The start: ``base`` and (``fit_x0``) each record's initial state."""
+        u = self.problem.bounds.to_unit(self.base)[np.flatnonzero(np.array(self.free))]
+        if not self.fit_x0:
+            return u
+        x0 = [part.sim.initial_states(1, u.dtype)[:, 0] for part in parts(self.problem)]
+        return jnp.concatenate([u] + x0)
 
-    def of_outputs(self, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch m"]:
-        return (pem_residuals if self.objective == "pem" else pearson_residuals)(self.problem, y)
+    def simulators(self, v: Float[Array, " n"]) -> list[Simulator]:
+        """Each record's simulator, started from its initial state in ``v`` when ``fit_x0``."""
+        records = parts(self.problem)
+        if not self.fit_x0:
+            return [part.sim for part in records]
+        x0 = v[self.n_free:].reshape(len(records), N_STATES)
+        return [part.sim.replace_x0(x) for part, x in zip(records, x0)]
+
+    def of_outputs(self, part: Problem, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch m"]:
+        """The objective's residuals of one record's outputs."""
+        return (pem_residuals if self.objective == "pem" else pearson_residuals)(part, y)
 
 
-def _residual(u: Array, boxed: _Boxed) -> Array:
-    fit = boxed.of_outputs(boxed.problem.sim(boxed.theta(u)))
-    return jnp.concatenate([fit, Bounds.penalty(u)])
+def _residual(v: Array, boxed: _Boxed) -> Array:
+    theta, u = boxed.theta(v), v[: boxed.n_free]
+    fits = [boxed.of_outputs(part, sim(theta)) for part, sim in zip(parts(boxed.problem), boxed.simulators(v))]
+    return jnp.concatenate(fits + [Bounds.penalty(u)])
+
+
+def _scores(theta: Array, v: Array, boxed: _Boxed) -> tuple[Array, Array, Array]:
+    """The objective's sum of squares, the paper's cost and the PEM sum of squares, added over records."""
+    loss = cost = rss = jnp.zeros((), theta.dtype)
+    for part, sim in zip(parts(boxed.problem), boxed.simulators(v)):
+        y = sim(theta)
+        loss = loss + jnp.sum(boxed.of_outputs(part, y) ** 2)
+        cost = cost + paper_cost(y, part.target)
+        rss = rss + jnp.sum(pem_residuals(part, y) ** 2)
+    return loss, cost, rss
 
 
 @eqx.filter_jit
 def _solve(
     boxed: _Boxed, solver: optx.AbstractLeastSquaresSolver, max_steps: int
-) -> tuple[Array, Array, Array, Array, Array, Array, optx.RESULTS]:
+) -> tuple[Array, Array, Array, Array, Array, Array, Array, optx.RESULTS]:
     """One least-squares solve of ``boxed``'s residuals; keeps the start (``base``) unless the solver beat it.
 
-    Returns ``theta, cost_start, cost, rss_start, rss, n_steps, result``. Start and answer are simulated
-    together in one batched run (one copy of the simulator in the compiled program).
+    Returns ``theta, x0 [R, 13], cost_start, cost, rss_start, rss, n_steps, result``. Start and answer are
+    simulated together in one vmapped run (one copy of the simulator in the compiled program).
     """
-    sol = optx.least_squares(_residual, solver, boxed.u0(), args=boxed, max_steps=max_steps, throw=False)
-    pair = jnp.stack([boxed.base, boxed.theta(Bounds.clip_unit(sol.value))])
-    problem = boxed.problem
-    y = problem.sim(pair)
-    loss = jnp.sum(boxed.of_outputs(y) ** 2, axis=-1)
+    v0 = boxed.v0()
+    sol = optx.least_squares(_residual, solver, v0, args=boxed, max_steps=max_steps, throw=False)
+    v1 = sol.value.at[: boxed.n_free].set(Bounds.clip_unit(sol.value[: boxed.n_free]))
+    pair, vs = jnp.stack([boxed.base, boxed.theta(v1)]), jnp.stack([v0, v1])
+    loss, cost, rss = jax.vmap(_scores, in_axes=(0, 0, None))(pair, vs, boxed)
     better = jnp.all(jnp.isfinite(pair[1])) & (loss[1] <= loss[0])
-    cost, rss = paper_cost(y, problem.target), jnp.sum(pem_residuals(problem, y) ** 2, axis=-1)
     pick = jnp.where(better, 1, 0)
-    return pair[pick], cost[0], cost[pick], rss[0], rss[pick], sol.stats["num_steps"], sol.result
+    x0 = jnp.zeros((0, N_STATES), pair.dtype)
+    if boxed.fit_x0:
+        x0 = jnp.stack([jnp.where(better, s1.x0, s0.x0)
+                        for s0, s1 in zip(boxed.simulators(v0), boxed.simulators(v1))])
+    return pair[pick], x0, cost[0], cost[pick], rss[0], rss[pick], sol.stats["num_steps"], sol.result
 
 
 def _least_squares(solver: Solver, rtol: float, atol: float) -> optx.AbstractLeastSquaresSolver:
@@ -182,6 +224,7 @@ class PEMResult:
         result: optimistix result name (``"successful"``, ``"max_steps_reached"``, ...); ``message`` its text.
         success: the solver converged (its termination test passed within ``max_steps``).
         settings: simulator and solver settings.
+        x0: ``[R, 13]`` each record's fitted initial state (``None`` unless it was fitted).
     """
 
     theta: np.ndarray
@@ -196,6 +239,7 @@ class PEMResult:
     message: str
     success: bool
     settings: dict[str, Any]
+    x0: np.ndarray | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready values; parameter vectors as ``{name: value}``."""
@@ -203,12 +247,13 @@ class PEMResult:
         out["theta"] = dict(zip(PARAM_NAMES, self.theta.tolist()))
         out["theta_start"] = dict(zip(PARAM_NAMES, self.theta_start.tolist()))
         out["free"] = list(self.free)
+        out["x0"] = None if self.x0 is None else self.x0.tolist()
         return out
 
 
 def _result(raw, base: np.ndarray, mask: np.ndarray, settings: dict[str, Any]) -> PEMResult:
     *values, result = raw
-    theta, c0, c1, r0, r1, steps = (np.asarray(v) for v in values)
+    theta, x0, c0, c1, r0, r1, steps = (np.asarray(v) for v in values)
     name = _result_name(result)
     return PEMResult(
         theta=theta,
@@ -223,6 +268,7 @@ def _result(raw, base: np.ndarray, mask: np.ndarray, settings: dict[str, Any]) -
         message=optx.RESULTS[result],
         success=name == "successful",
         settings=settings,
+        x0=x0 if x0.size else None,
     )
 
 
@@ -261,7 +307,7 @@ def pem(
 
 
 def fit(
-    problem: Problem,
+    problem: Problem | Records,
     start: Float[ArrayLike, "40"] | None,
     objective: Objective,
     solver: Solver,
@@ -269,12 +315,17 @@ def fit(
     free: Free,
     rtol: float,
     atol: float,
+    fit_x0: bool = False,
 ) -> PEMResult:
     """Least squares on ``objective``'s residuals over the free parameters, in ``problem``'s box (shared by
-    :func:`pem` and :func:`~jaxheli.optim.polish.polish`)."""
+    :func:`pem` and :func:`~jaxheli.optim.polish.polish`); over several records the residuals are concatenated,
+    so the sums of squares (and the paper's costs reported) add. ``fit_x0`` fits each record's initial state
+    too, from the one its simulator starts from."""
     base, mask = _start(start, problem.bounds), problem.bounds.free_mask(free)
-    boxed = _Boxed(problem, jnp.asarray(base), tuple(bool(m) for m in mask), objective)
+    boxed = _Boxed(problem, jnp.asarray(base), tuple(bool(m) for m in mask), objective, fit_x0)
     raw = _solve(boxed, _least_squares(solver, rtol, atol), int(max_steps))
     settings = {"objective": objective, "solver": solver, "max_steps": int(max_steps), "rtol": rtol, "atol": atol,
-                "simulator": problem.sim.describe()}
+                "fit_x0": fit_x0,
+                "simulator": [part.sim.describe() for part in parts(problem)] if isinstance(problem, Records)
+                else problem.sim.describe()}
     return _result(raw, base, mask, settings)

@@ -168,6 +168,24 @@ def standard_errors(
                           bounds=problem.bounds)
 
 
+def cramer_rao_coverage(
+    unc: Uncertainty, truth: Float[ArrayLike, "40"], *, k: float = 3.0, threshold: float = 0.1
+) -> dict[str, Any]:
+    """How far ``unc.theta`` lies from the known ``truth``, in standard errors (synthetic recovery checks).
+
+    Identifiable: free, resolved and relative standard error at most ``threshold`` (as :func:`identifiable`).
+    Returns ``{"k", "threshold", "identifiable": [names], "within": [names within k standard errors],
+    "fraction": share of the identifiable within, "z": {name: (theta - truth) / stderr}}`` (``z`` over the
+    identifiable parameters).
+    """
+    truth = np.asarray(truth, dtype=np.float64)
+    flags = unc.resolved & (unc.relative <= threshold)
+    z = {n: float((unc.theta[i] - truth[i]) / unc.stderr[i]) for i, n in enumerate(PARAM_NAMES) if flags[i]}
+    within = [n for n, v in z.items() if abs(v) <= k]
+    return {"k": float(k), "threshold": float(threshold), "identifiable": list(z), "within": within,
+            "fraction": len(within) / len(z) if z else float("nan"), "z": z}
+
+
 @dataclasses.dataclass(frozen=True)
 class Identifiability:
     """Which parameters a flight identifies at ``theta``, and why.

@@ -1,4 +1,4 @@
-"""The paper's cost for a whole population of candidates in one jitted call."""
+"""The search cost (the paper's, or the output error) for a whole population of candidates in one jitted call."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from .._types import Array, Float, Population
-from ..cost import paper_cost
+from ..cost import SearchCost, paper_cost, search_cost
 from ..data.flight import FlightData
 from .pearson_sums import blocked_cost
 from .shard import map_population
@@ -38,8 +38,9 @@ def simulator_cost(sim: Simulator, thetas: Array, target: Array, *, shard: bool 
 
 
 class PopulationCost(eqx.Module):
-    """``thetas[P, 40] -> cost[P]``: the paper's cost on one flight, scored in ``precision`` (the fastest kernel
-    the simulator has, :func:`simulator_cost`) and returned in the candidates' dtype.
+    """``thetas[P, 40] -> cost[P]``: the search cost ``kind`` on one flight, scored in ``precision`` and returned
+    in the candidates' dtype. The paper's cost (``"pearson"``) runs on the fastest kernel the simulator has
+    (:func:`simulator_cost`); ``"output-error"`` (:func:`jaxheli.cost.output_error_cost`) on its outputs.
 
     A pytree (the flight's arrays are leaves), so it stays traced inside an optimiser's scan and one compiled
     run serves every flight of the same length. ``precision`` ``None`` scores in the candidates' dtype.
@@ -48,11 +49,22 @@ class PopulationCost(eqx.Module):
     sim: Simulator
     target: Float[Array, "N k"]
     precision: str | None = eqx.field(static=True, default=None)
+    kind: SearchCost = eqx.field(static=True, default="pearson")
 
     def __call__(self, thetas: Population) -> Float[Array, "P"]:
         thetas = jnp.asarray(thetas)
         dtype = thetas.dtype if self.precision is None else self.precision
-        return simulator_cost(self.sim, thetas.astype(dtype), self.target.astype(dtype)).astype(thetas.dtype)
+        candidates, target = thetas.astype(dtype), self.target.astype(dtype)
+        if self.kind == "pearson":
+            cost = simulator_cost(self.sim, candidates, target)
+        else:
+            cost = _output_cost(self.sim, candidates, target, self.kind)
+        return cost.astype(thetas.dtype)
+
+
+@eqx.filter_jit
+def _output_cost(sim: Simulator, thetas: Array, target: Array, kind: SearchCost) -> Array:
+    return search_cost(kind, sim(thetas), target)
 
 
 def population_cost(thetas: Population, data: FlightData | Any, **options) -> Float[Array, "pop"]:
@@ -60,7 +72,8 @@ def population_cost(thetas: Population, data: FlightData | Any, **options) -> Fl
 
     ``data`` is a flight, with the options of :func:`jaxheli.make_simulator` (``outputs``, ``hold``,
     ``segment``, ...; the cost runs over the chosen output channels), or a :class:`jaxheli.problem.Problem`
-    (no options: its settings hold). Diverging candidates get the worst cost ``4 k``.
+    (no options: its settings hold, the search cost they name included). Diverging candidates get the worst
+    cost (``4 k`` for the paper's, ``inf`` for the output error).
     """
     if isinstance(data, FlightData):
         sim = make_simulator(data, **options)
