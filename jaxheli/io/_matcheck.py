@@ -30,8 +30,9 @@ class _Corrupt(Exception):
 
 
 def check_mat(path: Path) -> None:
-    """Raise :class:`FlightDataError` naming the file, variable and fault when a v5 file's structure is
-    inconsistent; return quietly for well-formed v5 files and for files of other versions."""
+    """Raise :class:`FlightDataError` naming the file, the variable's offset (and the array, where it has a
+    name) and the fault when a v5 file's structure is inconsistent; return quietly for well-formed v5 files
+    and for files of other versions."""
     data = path.read_bytes()
     if len(data) < _HEADER or data[126:128] not in (b"IM", b"MI") or 0 in data[:4]:
         return
@@ -94,24 +95,24 @@ def _elements(order: str, body: bytes) -> list[tuple[int, int, int]]:
 
 
 def _ints(order: str, body: bytes, element: tuple[int, int, int]) -> tuple[int, ...]:
-    kind, start, size = element
+    _, start, size = element
     return struct.unpack_from(f"{order}{size // 4}i", body, start)
 
 
-def _matrix(order: str, body: bytes, depth: int) -> str:
-    """Check one matrix body (and its children); return its name."""
+def _matrix(order: str, body: bytes, depth: int) -> None:
+    """Check one matrix body and its children."""
     if depth > _MAX_DEPTH:
         raise _Corrupt(f"arrays nested deeper than {_MAX_DEPTH} levels")
     parts = _elements(order, body)
     if not parts:
-        return ""
+        return
     flags_kind, flags_at, flags_size = parts[0]
     if (flags_kind, flags_size) != (6, 8):
         raise _Corrupt("matrix without its array-flags element")
     cls = struct.unpack_from(order + "I", body, flags_at)[0] & 0xFF
     if cls == _OPAQUE:  # class-system objects: type-name strings, then the matrices holding their data
         _children(order, body, parts[1:], depth)
-        return ""
+        return
     if len(parts) < 3:
         raise _Corrupt(f"matrix header of {len(parts)} elements (array flags, dimensions, name)")
     (dims_kind, _, dims_size), (name_kind, name_at, name_size) = parts[1:3]
@@ -133,16 +134,17 @@ def _matrix(order: str, body: bytes, depth: int) -> str:
     else:
         _children(order, body, _fields(order, body, name, cls, rest, count) if cls in (_CELL, _STRUCT, _OBJECT)
                   else rest, depth)
-    return name
 
 
 def _children(order: str, body: bytes, parts: list[tuple[int, int, int]], depth: int) -> None:
+    """Check the matrices among ``parts``, one level deeper."""
     for kind, start, size in parts:
         if kind == _MATRIX:
             _matrix(order, body[start: start + size], depth + 1)
 
 
 def _numeric(name: str, rest: list[tuple[int, int, int]], count: int) -> None:
+    """Real (and imaginary) data of a numeric array: ``count`` values each."""
     if len(rest) not in (1, 2) or any(kind == _MATRIX for kind, _, _ in rest):
         raise _Corrupt(f"numeric array '{name}': {len(rest)} data elements (expected real and optional imaginary)")
     for kind, _, size in rest:
@@ -150,7 +152,9 @@ def _numeric(name: str, rest: list[tuple[int, int, int]], count: int) -> None:
             raise _Corrupt(f"numeric array '{name}': {size} data bytes for {count} values of {_SIZES[kind]} bytes")
 
 
-def _fields(order: str, body: bytes, name: str, cls: int, rest: list[tuple[int, int, int]], count: int):
+def _fields(
+    order: str, body: bytes, name: str, cls: int, rest: list[tuple[int, int, int]], count: int
+) -> list[tuple[int, int, int]]:
     """The child matrices of a cell, struct or object, checked against the declared count."""
     per = 1
     if cls != _CELL:
