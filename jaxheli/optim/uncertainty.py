@@ -29,7 +29,7 @@ from .._types import Array, ArrayLike, Bool, Float
 from ..bounds import Bounds, Free
 from ..data.flight import FlightData
 from ..model import N_PARAMS, PARAM_NAMES
-from ..problem import Problem
+from ..problem import Problem, Records
 from .pem import PEM_DEFAULTS, fitted_problem, residuals
 
 
@@ -147,7 +147,7 @@ def from_residuals(
 
 
 def standard_errors(
-    data: FlightData | Problem,
+    data: FlightData | Problem | Records,
     theta: Float[ArrayLike, "40"],
     *,
     free: Free = None,
@@ -157,7 +157,8 @@ def standard_errors(
 ) -> Uncertainty:
     """Standard errors of ``theta`` (an optimum of :func:`jaxheli.optim.pem.pem`) on a record.
 
-    The residuals are PEM's normalised output errors on ``data``: a :class:`~jaxheli.problem.Problem`, or a
+    The residuals are PEM's normalised output errors on ``data`` (every record's, for
+    :class:`~jaxheli.problem.Records`): a :class:`~jaxheli.problem.Problem`, or a
     flight under PEM's defaults with :class:`~jaxheli.problem.Settings` fields in ``settings`` (``outputs``,
     ``segment`` s, ``hold``, ``x0``, ``g``); ``free`` defaults to every axis the problem's bounds leave free;
     ``rcond``, ``null_tol`` as in :func:`from_residuals`.
