@@ -131,14 +131,11 @@ def shrink_entries(
             "summary": "; ".join(sentence),
             "converged": bool(fit.converged[c]),
             "theta": dict(zip(PARAM_NAMES, map(float, np.asarray(fit.theta[c])))),
-            "_segs": np.asarray(segs[c]),
         })
-    for e in out:
-        e["tied_with"] = [o["effect"] for o in out if o is not e and e["significant"] and o["significant"]
-                          and abs(e["shrink_pct"] - o["shrink_pct"]) < TIE_SIGMA * _paired_se(e["_segs"], o["_segs"],
-                                                                                                  energy)]
-    for e in out:
-        del e["_segs"]
+    for i, e in enumerate(out):
+        e["tied_with"] = [o["effect"] for j, o in enumerate(out) if j != i and e["significant"] and o["significant"]
+                          and abs(e["shrink_pct"] - o["shrink_pct"])
+                          < TIE_SIGMA * _paired_se(segs[i + 1], segs[j + 1], energy)]
     return sorted(out, key=lambda e: -e["shrink_pct"])
 
 
