@@ -7,6 +7,8 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
     # both cores only slows the other one down (the walkthrough notebook's kernel gets the same setting).
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen=false").strip()
 
+import gc  # noqa: E402
+
 import jax  # noqa: E402
 import pytest
 
@@ -16,6 +18,20 @@ jax.config.update("jax_numpy_rank_promotion", "raise")
 from jaxheli.io.paths import data_dir  # noqa: E402
 
 REQUIRE_DATA = os.environ.get("JAXHELI_REQUIRE_DATA", "") not in ("", "0")
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _release_compiled_programs():
+    """Drop every compiled program after each test file.
+
+    Each XLA:CPU executable holds a few memory mappings of JIT code; a long-lived xdist worker that compiles
+    the whole suite's programs passes Linux's default limit of 65,530 mappings (``vm.max_map_count``) and
+    the next compile crashes the worker (segfault or abort inside ``backend_compile_and_load``). Clearing
+    JAX's caches lets the executables be freed; a file's own programs stay cached while it runs.
+    """
+    yield
+    jax.clear_caches()
+    gc.collect()
 
 
 @pytest.fixture(scope="session")
