@@ -254,6 +254,9 @@ def mismatch(
     }
 
 
+_FLOOR_DB = -200.0
+"""Magnitude error, dB, below which a model response counts as zero."""
+
 W_PHASE = 0.01745
 """CIFER's phase weight against the magnitude's (``W_g = 1``): 1 deg of phase error weighs as 0.132 dB."""
 
@@ -267,10 +270,15 @@ def response_errors(
     model: Complex[ArrayLike, "*shape"], flight: Complex[ArrayLike, "*shape"]
 ) -> tuple[Float[Array, "*shape"], Float[Array, "*shape"]]:
     """Magnitude error ``20 log10 |model / flight|`` (dB) and phase error ``angle(model / flight)`` (deg, wrapped
-    into (-180, 180]); differentiable in ``model`` (``flight`` must be non-zero)."""
+    into (-180, 180]); differentiable in ``model`` (``flight`` must be non-zero). A model response of zero reads
+    as :data:`_FLOOR_DB` with phase error 0 (finite, zero gradient)."""
     ratio = jnp.asarray(model) / jnp.asarray(flight)
     re, im = jnp.real(ratio), jnp.imag(ratio)
-    return 10.0 * jnp.log10(re**2 + im**2), jnp.degrees(jnp.arctan2(im, re))
+    power = re**2 + im**2
+    live = power > 10.0 ** (_FLOOR_DB / 10.0)
+    mag = 10.0 * jnp.log10(jnp.where(live, power, 10.0 ** (_FLOOR_DB / 10.0)))
+    phase = jnp.degrees(jnp.arctan2(jnp.where(live, im, 0.0), jnp.where(live, re, 1.0)))
+    return mag, phase
 
 
 def cifer_residuals(
