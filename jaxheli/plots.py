@@ -86,10 +86,14 @@ def plot_frequency_response(
     input_names: Sequence[str] = INPUT_NAMES,
     pairs: Sequence[tuple[str, str]] | None = None,
     title: str = "",
+    band: tuple[float, float] | None = None,
+    min_coherence: float | None = None,
+    notes: Mapping[tuple[str, str], str] | None = None,
 ) -> Path:
     """Bode plots of the flight estimate (dots, opacity = coherence) against the model (``[F, k, m]`` line, or
     several models as ``{label: [F, k, m]}``, one line each), one column per (input, output) pair: magnitude
-    (dB), phase (deg), partial coherence."""
+    (dB), phase (deg), partial coherence. ``band`` (Hz) limits the frequency axis, ``min_coherence`` is drawn as
+    a dashed line, ``notes`` adds text to a pair's title (e.g. its cost J)."""
     outputs, inputs = list(output_names), list(input_names)
     chosen = [p for p in (PRIMARY_PAIRS if pairs is None else pairs) if p[0] in inputs and p[1] in outputs]
     if not chosen:
@@ -112,11 +116,16 @@ def plot_frequency_response(
             axes[1, c].plot(f, np.degrees(np.angle(Hm)), color=colour, lw=1.2)
         axes[2, c].plot(f, gamma, color="C2", lw=1.0)
         axes[2, c].set_ylim(0, 1.02)
-        axes[0, c].set_title(f"{i} -> {o}", fontsize=9)
+        if min_coherence is not None:
+            axes[2, c].axhline(min_coherence, color="grey", ls="--", lw=0.8)
+        axes[0, c].set_title(f"{i} -> {o}" + (f" ({notes[(i, o)]})" if notes and (i, o) in notes else ""),
+                             fontsize=9)
         axes[2, c].set_xlabel("frequency [Hz]")
         for ax in axes[:, c]:
             ax.set_xscale("log")
             ax.grid(alpha=0.3, which="both")
+            if band is not None:
+                ax.set_xlim(*band)
     axes[0, 0].set_ylabel("magnitude [dB]")
     axes[1, 0].set_ylabel("phase [deg]")
     axes[2, 0].set_ylabel("partial coherence")
