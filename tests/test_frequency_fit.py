@@ -92,18 +92,18 @@ def test_cifer_cost_matches_a_hand_computation():
     np.testing.assert_allclose(np.asarray(cifer_cost(model, flight, coherence, use)), J, rtol=1e-10)
 
 
-@pytest.mark.slow  # ~70 s of CPU on two busy cores, mostly compiling (frequency fit, polish, scores)
+@pytest.mark.slow  # ~60 s on two busy cores, mostly compiling (frequency fit, two polish rounds, scores)
 def test_freq_polish_recovers_the_truth_from_a_perturbed_start(flights):
     train, validate = flights
     start = np.clip(TABLE2 * (1 + 0.3 * np.random.default_rng(6).uniform(-1, 1, 40)), LOWER, UPPER)
     result = identify(train, method="freq+polish", validate=validate, start=start, seed=0, engine_options=ENGINE,
-                      polish_steps=80, polish_rounds=1, progress=False)
+                      polish_steps=30, polish_rounds=2, progress=False)
     truth = validation_block(TABLE2, validate, CHANNELS)
     freq = result.frequency
     assert freq["fit"]["j_average"] < 50 and freq["acceptable"], freq  # the frequency fit alone: excellent
     assert freq["j"]["lat->p"] < 100 and freq["j"]["lon->q"] < 100, freq["j"]
     gap = {c: result.validate["fit_percent"][c] - truth["fit_percent"][c] for c in CHANNELS}
-    assert all(g > -3.0 for g in gap.values()), gap
+    assert all(g > -1.0 for g in gap.values()), gap  # measured: within 0.13 points
     assert result.settings["polish_objective"] == "output-error"
     assert json.dumps(result.to_json())  # J's and metrics are JSON-ready
 
