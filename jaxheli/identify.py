@@ -49,7 +49,8 @@ class IdentificationResult:
         trial_params, trial_costs: ``[K, 40]`` and ``[K]`` each trial's final parameters and training cost.
         history: ``[K, iterations]`` best cost per generation (population methods; empty for PEM).
         intervals95: ``{name: (low, high)}`` t-interval of the trial mean (``None`` for one trial).
-        stderr: ``{name: value}`` Cramer-Rao standard errors at ``params`` (inf: not identifiable).
+        stderr: ``{name: value}`` Cramer-Rao standard errors at ``params`` (inf: not identifiable, or every free
+            parameter when the model diverges in the simulation they are computed on).
         train, validate: metric blocks of :func:`jaxheli.evaluate` (``validate`` ``None`` without a flight);
             ``validate["zero_initial_state"]`` repeats the scores from rest, the paper's convention.
         polish: the best unpolished parameters and the cost before and after the gradient polish
@@ -207,12 +208,13 @@ def identify(
         if method.endswith("+polish"):
             trial_params, trial_costs, polish_info = _polish_trials(
                 search, trial_params, trial_costs, polish_objective, polish_steps, polish_rounds)
-            if polish_objective == "output-error":
-                fitted = output_error_problem(search, trial_params[int(np.argmin(trial_costs))])
+        if (method.endswith("+polish") and polish_objective == "output-error") or method == "freq":
+            # standard errors with restarts where unstable: a frequency fit may diverge over one run from rest
+            fitted = output_error_problem(search, trial_params[int(np.argmin(trial_costs))])
     best = int(np.argmin(trial_costs))
     params = trial_params[best]
     seconds = time.perf_counter() - t0
-    unc = standard_errors(fitted, params)
+    unc = standard_errors(fitted, params, nonfinite="unresolved")
     record = {
         "method": method, "iterations": iterations, "trials": trials, "outputs": list(problem.outputs),
         "segment": settings.segment, "hold": settings.hold, "g": settings.g, "pem_segment": pem_segment,

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter
 
 from .model import INPUT_NAMES, STATE_UNITS
 from .spectra import FrequencyResponse
@@ -126,6 +127,7 @@ def plot_frequency_response(
             ax.grid(alpha=0.3, which="both")
             if band is not None:
                 ax.set_xlim(*band)
+                ax.xaxis.set_minor_formatter(NullFormatter())  # under two decades matplotlib labels minor ticks
     axes[0, 0].set_ylabel("magnitude [dB]")
     axes[1, 0].set_ylabel("phase [deg]")
     axes[2, 0].set_ylabel("partial coherence")
