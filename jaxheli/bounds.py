@@ -73,6 +73,15 @@ class Bounds(eqx.Module):
         lower, width = (jnp.broadcast_to(v.astype(unit.dtype), unit.shape) for v in (self.lower, self.width))
         return lower + width * unit
 
+    def embed(
+        self, base: Float[ArrayLike, "dim"], mask: Bool[np.ndarray, "dim"], unit: Float[ArrayLike, " n"]
+    ) -> Float[Array, "dim"]:
+        """Physical parameters: the axes of ``mask`` at the unit coordinates ``unit`` (in axis order, unclipped),
+        the others at ``base`` (how a gradient solver's free coordinates become ``theta``)."""
+        base = jnp.asarray(base)
+        full = self.to_unit(base).at[np.flatnonzero(mask)].set(unit)
+        return jnp.where(mask, self.from_unit(full), base)
+
     @staticmethod
     def clip_unit(unit: Float[ArrayLike, "*batch dim"]) -> Float[Array, "*batch dim"]:
         """The nearest point of the box, in unit coordinates; slope 1 on the closed box, 0 outside.

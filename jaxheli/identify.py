@@ -1,10 +1,11 @@
-"""One entry point for every identification method: IWO, GA, PEM, IWO + gradient polish.
+"""One entry point for every identification method: IWO, GA, PEM, frequency domain (CIFER), and IWO or the
+frequency fit followed by a gradient polish.
 
 ``identify(flight, method=...)`` runs the chosen engine (K trials vmapped in one scan for the population
-methods) on its search cost (the paper's Pearson cost by default), polishes when asked (by default on the output
-error, so gains and offsets are identified), computes Cramer-Rao standard errors and 95 % intervals over trials,
-and scores the result on the training flight and, if given, a validation flight (and the truth beside it when it
-is known). The result object holds
+methods) on its search cost (the paper's Pearson cost by default; Tischler's frequency-response cost J for the
+frequency fit), polishes when asked (by default on the output error, so gains and offsets are identified),
+computes Cramer-Rao standard errors and 95 % intervals over trials, and scores the result on the training flight
+and, if given, a validation flight (and the truth beside it when it is known). The result object holds
 everything :func:`jaxheli.identify_report.save_result` writes (JSON, NPZ, PNG).
 """
 
@@ -24,6 +25,7 @@ from .cost import SearchCost
 from .data.flight import FlightData, constant_outputs, default_outputs
 from .evaluate import evaluate
 from .model import G_SI, LOWER, PARAM_NAMES, UPPER
+from .optim.frequency_fit import FrequencyFitResult, cifer_report, frequency_fit
 from .optim.ga import GA
 from .optim.iwo import IWO
 from .optim.pem import pem
@@ -33,8 +35,8 @@ from .optim.run import minimize, minimize_trials
 from .optim.uncertainty import Uncertainty, cramer_rao_coverage, standard_errors
 from .problem import Problem, Records, as_problem, make_problem, parts
 
-Method = Literal["iwo", "ga", "pem", "iwo+polish"]
-METHODS: tuple[str, ...] = ("iwo", "ga", "pem", "iwo+polish")
+Method = Literal["iwo", "ga", "pem", "iwo+polish", "freq", "freq+polish"]
+METHODS: tuple[str, ...] = ("iwo", "ga", "pem", "iwo+polish", "freq", "freq+polish")
 
 
 @dataclasses.dataclass
@@ -47,7 +49,8 @@ class IdentificationResult:
         trial_params, trial_costs: ``[K, 40]`` and ``[K]`` each trial's final parameters and training cost.
         history: ``[K, iterations]`` best cost per generation (population methods; empty for PEM).
         intervals95: ``{name: (low, high)}`` t-interval of the trial mean (``None`` for one trial).
-        stderr: ``{name: value}`` Cramer-Rao standard errors at ``params`` (inf: not identifiable).
+        stderr: ``{name: value}`` Cramer-Rao standard errors at ``params`` (inf: not identifiable, or every free
+            parameter when the model diverges in the simulation they are computed on).
         train, validate: metric blocks of :func:`jaxheli.evaluate` (``validate`` ``None`` without a flight);
             ``validate["zero_initial_state"]`` repeats the scores from rest, the paper's convention.
         polish: the best unpolished parameters and the cost before and after the gradient polish
@@ -56,6 +59,9 @@ class IdentificationResult:
         truth: when the true parameters are known (synthetic flights): their parameters, their scores as
             ``train`` / ``validate`` and ``cramer_rao`` (:func:`~jaxheli.optim.uncertainty.cramer_rao_coverage`);
             else ``None``.
+        frequency: frequency methods: Tischler's ``J`` per (input, output) pair at ``params``, their bins, the
+            average ``J`` and ``acceptable`` (``<= 100``), with the best trial's frequency fit under ``"fit"``
+            (its own ``J``s, starts, band; :class:`~jaxheli.optim.frequency_fit.FrequencyFitResult`); else ``None``.
     """
 
     method: str
@@ -72,6 +78,7 @@ class IdentificationResult:
     polish: dict[str, Any] | None
     seconds: float
     truth: dict[str, Any] | None = None
+    frequency: dict[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready content (``result.json``); parameters and intervals named as in :data:`PARAM_NAMES`."""
@@ -88,6 +95,7 @@ class IdentificationResult:
             "polish": self.polish,
             "seconds": self.seconds,
             "truth": self.truth,
+            "frequency": self.frequency,
         }
 
 
@@ -136,8 +144,9 @@ def identify(
             ``lower``, ``upper``, ``cost``, ``search_precision``), several flights (fitted at once: each its own
             initial state, costs add; :class:`~jaxheli.problem.Records`), or a :class:`~jaxheli.problem.Problem`
             or :class:`~jaxheli.problem.Records` whose settings replace those arguments.
-        method: ``"iwo"``, ``"ga"``, ``"pem"`` or ``"iwo+polish"`` (IWO, then optimistix on
-            ``polish_objective``).
+        method: ``"iwo"``, ``"ga"``, ``"pem"``, ``"iwo+polish"`` (IWO, then optimistix on ``polish_objective``),
+            ``"freq"`` (frequency responses fitted on Tischler's cost J, :func:`~jaxheli.optim.frequency_fit.
+            frequency_fit`) or ``"freq+polish"`` (that, then the polish).
         validate: optional held-out record, scored with an estimated initial state and from rest.
         iterations: generations of IWO / GA (the paper: 1000).
         trials: independent trials (vmapped); their spread gives the 95 % intervals (the paper: 10).
@@ -147,7 +156,8 @@ def identify(
         hold, g: simulation settings (:func:`jaxheli.make_simulator`).
         lower, upper: search box of every engine (population, PEM, polish, standard errors; default: the
             authors' bounds).
-        start: PEM's start (default: the middle of the bounds; random in the box for trials > 1).
+        start: PEM's start (default: the middle of the bounds; random in the box for trials > 1); the frequency
+            fit's first start (default: its best screened draws only).
         cost: what IWO / GA minimise: ``"pearson"`` (the paper's Eq. 7) or ``"output-error"``
             (:func:`jaxheli.cost.output_error_cost`).
         polish_objective: ``"output-error"`` (default: normalised output errors, initial state estimated,
@@ -160,7 +170,9 @@ def identify(
             times faster and its costs agree with float64 to 1e-3, see ``tests/test_blocked.py``); the polish,
             PEM and every reported metric run in the session's precision (float64 unless disabled).
         engine_options: further hyperparameters of :class:`~jaxheli.optim.IWO` / :class:`~jaxheli.optim.GA`
-            (e.g. ``{"modulation": 3.0}``; default: the paper's settings).
+            (e.g. ``{"modulation": 3.0}``; default: the paper's settings), or keywords of the frequency fit
+            (``starts``, ``screen``, ``band``, ``min_coherence``, ``max_steps``, ...); trial ``k`` of the frequency
+            fit draws its starts from ``seed + k``.
         truth: the true parameters when known (default: a synthetic flight's ``metadata["truth"]`` when it
             carries no unmodelled effect); scored beside the result, with the share of identifiable parameters
             within 3 Cramer-Rao standard errors of it.
@@ -177,38 +189,36 @@ def identify(
     t0 = time.perf_counter()
     key = jax.random.PRNGKey(seed)
     history = np.zeros((trials, 0))
-    polish_info = None
+    polish_info = fits = None
     if method == "pem":
         fitted = problem.variant(segment=pem_segment, x0="measured")
         trial_params, trial_costs = _pem_trials(fitted, key, trials, start)
         scored = fitted
     else:
         search = problem.variant(x0="zero")
-        bounds = problem.bounds
-        engine_type = IWO if method != "ga" else GA
-        engine = engine_type(lower=bounds.lower, upper=bounds.upper, iterations=iterations, **(engine_options or {}))
-        keys = jax.random.split(key, trials)
-        run_options = {"chunk": chunk, "progress": progress, "checkpoint": checkpoint, "resume": resume}
-        cost_fn = search.population_cost()
-        run = (minimize_trials(engine, cost_fn, keys, **run_options) if trials > 1
-               else minimize(engine, cost_fn, keys[0], **run_options))
-        trial_params = np.asarray(run.best_theta).reshape(trials, -1)
-        trial_costs = np.asarray(run.best_cost).reshape(trials)
-        history = np.asarray(run.history).reshape(trials, -1)
+        if method.startswith("freq"):
+            fits = [frequency_fit(search, start=start, seed=seed + k, **(engine_options or {}))
+                    for k in range(trials)]
+            trial_params, trial_costs = np.stack([f.theta for f in fits]), np.array([f.j_average for f in fits])
+        else:
+            run_options = {"chunk": chunk, "progress": progress, "checkpoint": checkpoint, "resume": resume}
+            trial_params, trial_costs, history = _population_trials(
+                search, GA if method == "ga" else IWO, iterations, engine_options, key, trials, run_options)
         fitted = scored = search
-        if method == "iwo+polish":
+        if method.endswith("+polish"):
             trial_params, trial_costs, polish_info = _polish_trials(
                 search, trial_params, trial_costs, polish_objective, polish_steps, polish_rounds)
-            if polish_objective == "output-error":
-                fitted = output_error_problem(search, trial_params[int(np.argmin(trial_costs))])
+        if (method.endswith("+polish") and polish_objective == "output-error") or method == "freq":
+            # standard errors with restarts where unstable: a frequency fit may diverge over one run from rest
+            fitted = output_error_problem(search, trial_params[int(np.argmin(trial_costs))])
     best = int(np.argmin(trial_costs))
     params = trial_params[best]
     seconds = time.perf_counter() - t0
-    unc = standard_errors(fitted, params)
+    unc = standard_errors(fitted, params, nonfinite="unresolved")
     record = {
         "method": method, "iterations": iterations, "trials": trials, "outputs": list(problem.outputs),
         "segment": settings.segment, "hold": settings.hold, "g": settings.g, "pem_segment": pem_segment,
-        "cost": settings.cost, "polish_objective": polish_objective if method == "iwo+polish" else None,
+        "cost": settings.cost, "polish_objective": polish_objective if method.endswith("+polish") else None,
         "polish_steps": polish_steps, "polish_rounds": polish_rounds, "train_source": str(problem.source),
         "validate_source": None if validate is None else validate.source,
         "x64": bool(jax.config.jax_enable_x64), "search_precision": settings.precision,
@@ -231,6 +241,7 @@ def identify(
         polish=polish_info,
         seconds=seconds,
         truth=None if truth is None else _truth_block(truth, unc, scored, validate, problem),
+        frequency=None if fits is None else _frequency_block(fits, params),
     )
 
 
@@ -240,6 +251,22 @@ def scores(params: Float[np.ndarray, "40"], problem: Problem | Records) -> dict[
     block = evaluate(params, problem, x0="estimate")
     block["zero_initial_state"] = evaluate(params, problem, x0="zero")
     return block
+
+
+def _population_trials(
+    search: Problem | Records, engine_type: type, iterations: int, engine_options: dict[str, Any] | None, key,
+    trials: int, run_options: dict[str, Any],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``trials`` runs of IWO or GA (vmapped when several) on ``search``'s population cost: each trial's best
+    parameters ``[K, 40]``, cost ``[K]`` and best cost per generation ``[K, iterations]``."""
+    bounds = search.bounds
+    engine = engine_type(lower=bounds.lower, upper=bounds.upper, iterations=iterations, **(engine_options or {}))
+    keys = jax.random.split(key, trials)
+    cost_fn = search.population_cost()
+    run = (minimize_trials(engine, cost_fn, keys, **run_options) if trials > 1
+           else minimize(engine, cost_fn, keys[0], **run_options))
+    return (np.asarray(run.best_theta).reshape(trials, -1), np.asarray(run.best_cost).reshape(trials),
+            np.asarray(run.history).reshape(trials, -1))
 
 
 def _polish_trials(
@@ -264,6 +291,12 @@ def _polish_trials(
         "rounds": polished[after].settings.get("rounds"),
     }
     return np.stack([p.theta for p in polished]), costs, info
+
+
+def _frequency_block(fits: list[FrequencyFitResult], params: Float[np.ndarray, "40"]) -> dict[str, Any]:
+    """Tischler's ``J`` per pair at ``params`` on the frequency fit's bins, and the best trial's fit."""
+    best = min(fits, key=lambda f: f.j_average)
+    return {**cifer_report(best.targets, params), "fit": best.to_dict()}
 
 
 def _known_truth(data: FlightData | Sequence[FlightData] | Problem | Records) -> np.ndarray | None:

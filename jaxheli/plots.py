@@ -1,4 +1,5 @@
-"""PNG plots of identification results: time-domain verification and convergence curves.
+"""PNG plots of identification results: time-domain verification, convergence curves, flight against model
+frequency responses.
 
 Figures are drawn on matplotlib's Agg canvas outside pyplot, so plotting works headless and leaves the
 caller's backend and open figures alone.
@@ -6,15 +7,23 @@ caller's backend and open figures alone.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter
 
-from .model import STATE_UNITS
+from .model import INPUT_NAMES, STATE_UNITS
+from .spectra import FrequencyResponse
+
+PRIMARY_PAIRS: tuple[tuple[str, str], ...] = (
+    ("lat", "p"), ("lat", "phi"), ("lat", "v"), ("lon", "q"), ("lon", "theta"), ("lon", "u"),
+    ("ped", "r"), ("col", "w"),
+)
+"""On-axis (input, output) pairs plotted by default, as in rotorcraft frequency-domain practice."""
 
 
 def plot_time_domain(
@@ -59,6 +68,72 @@ def plot_convergence(histories: Mapping[str, np.ndarray], path: str | Path, titl
         ax.legend(fontsize=8)
     if title:
         ax.set_title(title)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _decibels(response: np.ndarray) -> np.ndarray:
+    """``20 log10 |H|``; NaN (not drawn) where ``H`` is zero, e.g. for a stick that never moves."""
+    magnitude = np.abs(response)
+    return np.where(magnitude > 0, 20 * np.log10(np.where(magnitude > 0, magnitude, 1.0)), np.nan)
+
+
+def plot_frequency_response(
+    flight: FrequencyResponse,
+    model: np.ndarray | Mapping[str, np.ndarray] | None,
+    output_names: Sequence[str],
+    path: str | Path,
+    *,
+    input_names: Sequence[str] = INPUT_NAMES,
+    pairs: Sequence[tuple[str, str]] | None = None,
+    title: str = "",
+    band: tuple[float, float] | None = None,
+    min_coherence: float | None = None,
+    notes: Mapping[tuple[str, str], str] | None = None,
+) -> Path:
+    """Bode plots of the flight estimate (dots, opacity = coherence) against the model (``[F, k, m]`` line, or
+    several models as ``{label: [F, k, m]}``, one line each), one column per (input, output) pair: magnitude
+    (dB), phase (deg), partial coherence. ``band`` (Hz) limits the frequency axis, ``min_coherence`` is drawn as
+    a dashed line, ``notes`` adds text to a pair's title (e.g. its cost J)."""
+    outputs, inputs = list(output_names), list(input_names)
+    chosen = [p for p in (PRIMARY_PAIRS if pairs is None else pairs) if p[0] in inputs and p[1] in outputs]
+    if not chosen:
+        raise ValueError(f"plot_frequency_response: no pair of {pairs or PRIMARY_PAIRS} in {inputs} x {outputs}")
+    models = {} if model is None else dict(model) if isinstance(model, Mapping) else {"model": model}
+    f = np.asarray(flight.freq)
+    fig, axes = _subplots(3, len(chosen), figsize=(2.8 * len(chosen) + 0.5, 7), sharex=True, squeeze=False)
+    for c, (i, o) in enumerate(chosen):
+        k, m = outputs.index(o), inputs.index(i)
+        H = np.asarray(flight.response)[:, k, m]
+        gamma = np.clip(np.asarray(flight.coherence)[:, k, m], 0, 1)
+        colours = np.zeros((f.size, 4))
+        colours[:, 3] = 0.15 + 0.85 * gamma
+        axes[0, c].scatter(f, _decibels(H), s=6, c=colours, label="flight")
+        axes[1, c].scatter(f, np.degrees(np.angle(H)), s=6, c=colours)
+        for j, (label, response) in enumerate(models.items()):
+            Hm = np.asarray(response)[:, k, m]
+            colour = "C3" if len(models) == 1 else f"C{j % 10}"  # the time-domain plots' colours
+            axes[0, c].plot(f, _decibels(Hm), color=colour, lw=1.2, label=label)
+            axes[1, c].plot(f, np.degrees(np.angle(Hm)), color=colour, lw=1.2)
+        axes[2, c].plot(f, gamma, color="C2", lw=1.0)
+        axes[2, c].set_ylim(0, 1.02)
+        if min_coherence is not None:
+            axes[2, c].axhline(min_coherence, color="grey", ls="--", lw=0.8)
+        axes[0, c].set_title(f"{i} -> {o}" + (f" ({notes[(i, o)]})" if notes and (i, o) in notes else ""),
+                             fontsize=9)
+        axes[2, c].set_xlabel("frequency [Hz]")
+        for ax in axes[:, c]:
+            ax.set_xscale("log")
+            ax.grid(alpha=0.3, which="both")
+            if band is not None:
+                ax.set_xlim(*band)
+                ax.xaxis.set_minor_formatter(NullFormatter())  # under two decades matplotlib labels minor ticks
+    axes[0, 0].set_ylabel("magnitude [dB]")
+    axes[1, 0].set_ylabel("phase [deg]")
+    axes[2, 0].set_ylabel("partial coherence")
+    axes[0, 0].legend(fontsize=7)
+    if title:
+        fig.suptitle(title)
     fig.tight_layout()
     return _save(fig, path)
 

@@ -14,8 +14,10 @@ from .data.flight import default_outputs
 from .evaluate import simulate_as_scored
 from .identify import IdentificationResult
 from .io.npz import save_npz
-from .model import PARAM_NAMES
-from .plots import plot_convergence, plot_time_domain
+from .model import INPUT_NAMES, PARAM_NAMES, params_array
+from .optim.frequency_fit import model_step
+from .plots import PRIMARY_PAIRS, plot_convergence, plot_frequency_response, plot_time_domain
+from .spectra import estimate_frequency_response, model_frequency_response
 
 PLOT_CHANNELS: tuple[str, ...] = ("p", "q", "phi", "theta")
 """Channels of the time-domain verification plots (the paper's Figs. 4-6)."""
@@ -36,6 +38,25 @@ def _verification(result: IdentificationResult, flight: FlightData, x0, path: Pa
     return plot_time_domain(flight.time, flight.select(chans).outputs, models, chans, path, title)
 
 
+def _frequency(result: IdentificationResult, flight: FlightData, path: Path) -> Path:
+    """Flight against model frequency responses on the on-axis pairs of the frequency fit's band, the truth's
+    beside when it is known, each pair's J (at the result) in its title."""
+    fit = result.frequency["fit"]["settings"]
+    chans = tuple(c for c in result.settings["outputs"] if c in flight.output_names)
+    estimate = estimate_frequency_response(flight.inputs, flight.select(chans).outputs, flight.dt,
+                                           segment_seconds=fit["segment_s"][0])
+    dt = model_step(result.settings["hold"], flight.dt)
+    params = {} if result.truth is None else {"truth": params_array(result.truth["parameters"])}
+    params[result.method] = result.params
+    models = {label: np.asarray(model_frequency_response(th, estimate.freq, chans, result.settings["g"], dt))
+              for label, th in params.items()}
+    costs = {tuple(name.split("->")): f"J {j:.0f}" for name, j in result.frequency["j"].items() if "(" not in name}
+    pairs = [p for p in PRIMARY_PAIRS if p[1] in chans] or [(i, chans[0]) for i in INPUT_NAMES]
+    return plot_frequency_response(estimate, models, chans, path, pairs=pairs, band=tuple(fit["band_hz"]),
+                                   min_coherence=fit["min_coherence"], notes=costs,
+                                   title=f"{result.method}: flight against model frequency responses")
+
+
 def save_result(
     result: IdentificationResult,
     out_dir: str | Path,
@@ -47,7 +68,8 @@ def save_result(
     Writes ``result.json`` (with each flight's source, preprocessing steps and load warnings under
     ``provenance``), ``result.npz``, ``train_flight.npz`` / ``validate_flight.npz`` (the flights as the fit and
     the scores saw them; further training records as ``train_flight_2.npz``, ... listed in
-    ``data["train_records"]``) and the PNG plots (time-domain verification per record, convergence).
+    ``data["train_records"]``) and the PNG plots (time-domain verification per record, convergence, and for the
+    frequency methods flight against model frequency responses).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -86,6 +108,8 @@ def save_result(
             _verification(result, validate, "estimate", out / "verification_validate.png",
                           f"{result.method}: validation flight (initial state estimated)")
         )
+    if result.frequency is not None:
+        files.append(_frequency(result, records[0], out / "frequency_response.png"))
     if result.history.size:
         curves = {f"trial {k}": h for k, h in enumerate(result.history)}
         files.append(plot_convergence(curves, out / "convergence.png", f"{result.method} convergence"))

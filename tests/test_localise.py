@@ -10,7 +10,7 @@ import scipy.signal as ss
 
 import jaxheli
 from jaxheli.cost import nmse
-from jaxheli.gap.frequency import estimate_frequency_response, model_frequency_response
+from jaxheli.spectra import estimate_frequency_response, model_frequency_response
 from jaxheli.gap.localise import localise
 from jaxheli.cli.gap import add_localise_parser as add_parser
 

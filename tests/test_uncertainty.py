@@ -72,3 +72,14 @@ def test_identifiability_on_a_flight_without_heave():
     assert verdict.reasons["Zw"].startswith("unresolved") and verdict.reasons["Lb"].startswith("identifiable")
     assert np.all(unc.relative[[PARAM_NAMES.index(p) for p in ("Lb", "Ma", "tf")]] < 0.01)
     json.dumps(verdict.to_dict())
+
+
+def test_diverging_residuals_raise_or_leave_every_free_parameter_unresolved():
+    def diverging(theta):
+        return jnp.full(50, jnp.inf) * theta[0]
+
+    with pytest.raises(ValueError, match="not finite"):
+        from_residuals(diverging, TABLE2)
+    unc = from_residuals(diverging, TABLE2, nonfinite="unresolved")
+    free = ~np.isin(PARAM_NAMES, PINNED)
+    assert np.all(np.isinf(unc.stderr[free])) and np.all(unc.stderr[~free] == 0) and not unc.resolved.any()

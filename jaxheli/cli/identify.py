@@ -14,8 +14,11 @@ from ._options import add_load_options, add_sim_options, outputs, read_flight, s
 
 def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``identify`` on the ``jaxheli`` command line."""
-    p = subparsers.add_parser("identify", help="fit the 40 parameters to a flight (IWO, GA, PEM, IWO + polish)")
-    p.add_argument("--method", choices=("iwo", "ga", "pem", "iwo+polish"), default="iwo+polish")
+    p = subparsers.add_parser("identify", help="fit the 40 parameters to a flight (IWO, GA, PEM, IWO + polish, "
+                                               "frequency domain)")
+    p.add_argument("--method", choices=("iwo", "ga", "pem", "iwo+polish", "freq", "freq+polish"),
+                   default="iwo+polish", help="engine (default iwo+polish); freq: frequency responses fitted on "
+                                              "Tischler's cost J (CIFER); freq+polish: then the time-domain polish")
     p.add_argument("--train", nargs="+", default=[DEFAULT_DATA], metavar="FILE[:t0-t1]",
                    help="training flight file(s) (a 'jaxheli prepare' NPZ too) or 'default' (the embedded flight), "
                         "each optionally cut to a window t0-t1 s; several records are fitted at once (each its own "
@@ -39,6 +42,14 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                         "pearson: the paper's pure pipeline) or pem")
     p.add_argument("--polish-steps", type=int, default=30,
                    help="Levenberg-Marquardt steps per polish round (default 30)")
+    p.add_argument("--freq-starts", type=int, default=8, metavar="K",
+                   help="freq: Levenberg-Marquardt starts, the best of --freq-screen draws in the box (default 8)")
+    p.add_argument("--freq-screen", type=int, default=2000, metavar="S",
+                   help="freq: points drawn in the box and scored on J to choose the starts (default 2000)")
+    p.add_argument("--freq-steps", type=int, default=200, metavar="N",
+                   help="freq: Levenberg-Marquardt step limit of each start (default 200)")
+    p.add_argument("--freq-band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                   help="freq: fitted band, Hz (default 0.1 Hz to a third of Nyquist, at most 10 Hz)")
     add_sim_options(p)
     p.set_defaults(func=_cmd_identify)
     return p
@@ -117,10 +128,13 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         cost=args.cost,
         polish_objective=args.polish_objective,
         polish_steps=args.polish_steps,
-        checkpoint=str(out / "checkpoint.eqx") if args.method != "pem" else None,
+        checkpoint=str(out / "checkpoint.eqx") if args.method in ("iwo", "ga", "iwo+polish") else None,
         resume=args.resume,
         chunk=args.checkpoint_every,
         search_precision=args.search_precision,
+        engine_options={"starts": args.freq_starts, "screen": args.freq_screen, "max_steps": args.freq_steps,
+                        "band": None if args.freq_band is None else tuple(args.freq_band)}
+        if args.method.startswith("freq") else None,
         **sim_options(args),
     )
     truth = result.truth or {}
@@ -136,6 +150,13 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         p = result.polish
         print(f"polish ({p['objective']}): objective {p['objective_before']:.6g} -> {p['objective_after']:.6g}; "
               f"search cost {p['cost_before']:.6g} -> {p['cost_after']:.6g}")
+    if result.frequency:
+        f = result.frequency
+        print(f"CIFER cost J (flight vs model frequency responses, {f['fit']['settings']['band_hz'][0]:g}-"
+              f"{f['fit']['settings']['band_hz'][1]:.3g} Hz, coherence >= {f['fit']['settings']['min_coherence']}): "
+              f"average {f['j_average']:.1f} ({'acceptable' if f['acceptable'] else 'above 100'}; frequency fit alone "
+              f"{f['fit']['j_average']:.1f})")
+        print("  " + "  ".join(f"{pair} {j:.0f}" for pair, j in f["j"].items()))
     if truth:
         cr = truth["cramer_rao"]
         print(f"truth within {cr['k']:g} Cramer-Rao standard errors: {len(cr['within'])} of "

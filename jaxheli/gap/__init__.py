@@ -4,9 +4,9 @@ The gap of a channel is its normalised residual energy, :func:`jaxheli.cost.nmse
 """
 
 from .consistency import Finding as Finding, check as check, correct as correct
-from .frequency import FrequencyResponse as FrequencyResponse, estimate_frequency_response as estimate_frequency_response
-from .frequency import mismatch as mismatch, model_frequency_response as model_frequency_response
-from .frequency import residual_frequency_response as residual_frequency_response
+from ..spectra import FrequencyResponse as FrequencyResponse, estimate_frequency_response as estimate_frequency_response
+from ..spectra import mismatch as mismatch, model_frequency_response as model_frequency_response
+from ..spectra import residual_frequency_response as residual_frequency_response
 from .localise import localise as localise
 from .compare import frequency_comparison as frequency_comparison, localise_model as localise_model
 from .compare import localise_prediction as localise_prediction

@@ -13,7 +13,7 @@ from ..data.flight import FlightData, default_outputs
 from ..evaluate import resolve_params, started_simulator
 from ..model import G_SI, INPUT_NAMES
 from ..problem import make_problem
-from .frequency import FrequencyResponse, estimate_frequency_response, mismatch, model_frequency_response
+from ..spectra import FrequencyResponse, estimate_frequency_response, mismatch, model_frequency_response
 from .localise import localise
 
 
@@ -85,7 +85,8 @@ def localise_prediction(
 
 def write_localisation(report: dict, theta: np.ndarray, flight: FlightData, out: str | Path) -> list[Path]:
     """Write ``localisation.json`` and the PNG plots (bands, lags, frequency response) into ``out``."""
-    from .plots import plot_frequency_response, plot_lag_correlation, plot_residual_bands
+    from ..plots import plot_frequency_response
+    from .plots import plot_lag_correlation, plot_residual_bands
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -200,7 +200,8 @@ def write_diagnosis(
 ) -> list[Path]:
     """Write ``diagnosis.json``, ``consistency.json`` and the PNGs (residual bands, lag correlation, frequency
     response, before/after time histories on ``validate``) into ``out``."""
-    from .plots import plot_frequency_response, plot_lag_correlation, plot_residual_bands
+    from ..plots import plot_frequency_response
+    from .plots import plot_lag_correlation, plot_residual_bands
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -22,7 +22,7 @@ from .._types import Float
 from ..cost import nmse, pearson, rmse, tic
 from ..data.flight import FlightData
 from ..model import INPUT_NAMES
-from .frequency import FrequencyResponse, residual_frequency_response
+from ..spectra import FrequencyResponse, residual_frequency_response
 
 DEFAULT_BANDS: tuple[float | None, ...] = (0.0, 0.5, 1.0, 2.0, 5.0, None)
 """Band edges, Hz; ``None`` is the Nyquist frequency."""

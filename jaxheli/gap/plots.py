@@ -1,21 +1,14 @@
-"""PNG plots of the gap: residual by band, input-residual lag correlation, flight against model Bode plots."""
+"""PNG plots of the gap: residual by band and input-residual lag correlation (flight against model Bode plots:
+:func:`jaxheli.plots.plot_frequency_response`)."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
-from ..model import INPUT_NAMES
 from ..plots import _save, _subplots
-from .frequency import FrequencyResponse
-
-PRIMARY_PAIRS: tuple[tuple[str, str], ...] = (
-    ("lat", "p"), ("lat", "phi"), ("lat", "v"), ("lon", "q"), ("lon", "theta"), ("lon", "u"),
-    ("ped", "r"), ("col", "w"),
-)
-"""On-axis (input, output) pairs plotted by default, as in rotorcraft frequency-domain practice."""
 
 
 def plot_residual_bands(localisation: Mapping[str, object], path: str | Path, title: str = "") -> Path:
@@ -79,61 +72,5 @@ def plot_lag_correlation(localisation: Mapping[str, object], path: str | Path, t
     for ax in axes[-1]:
         ax.set_xlabel("lag [s]")
     fig.suptitle(title or "input-residual cross-correlation (grey: not significant)", fontsize=10)
-    fig.tight_layout()
-    return _save(fig, path)
-
-
-def _decibels(response: np.ndarray) -> np.ndarray:
-    """``20 log10 |H|``; NaN (not drawn) where ``H`` is zero, e.g. for a stick that never moves."""
-    magnitude = np.abs(response)
-    return np.where(magnitude > 0, 20 * np.log10(np.where(magnitude > 0, magnitude, 1.0)), np.nan)
-
-
-def plot_frequency_response(
-    flight: FrequencyResponse,
-    model: np.ndarray | Mapping[str, np.ndarray] | None,
-    output_names: Sequence[str],
-    path: str | Path,
-    *,
-    input_names: Sequence[str] = INPUT_NAMES,
-    pairs: Sequence[tuple[str, str]] | None = None,
-    title: str = "",
-) -> Path:
-    """Bode plots of the flight estimate (dots, opacity = coherence) against the model (``[F, k, m]`` line, or
-    several models as ``{label: [F, k, m]}``, one line each), one column per (input, output) pair: magnitude
-    (dB), phase (deg), partial coherence."""
-    outputs, inputs = list(output_names), list(input_names)
-    chosen = [p for p in (PRIMARY_PAIRS if pairs is None else pairs) if p[0] in inputs and p[1] in outputs]
-    if not chosen:
-        raise ValueError(f"plot_frequency_response: no pair of {pairs or PRIMARY_PAIRS} in {inputs} x {outputs}")
-    models = {} if model is None else dict(model) if isinstance(model, Mapping) else {"model": model}
-    f = np.asarray(flight.freq)
-    fig, axes = _subplots(3, len(chosen), figsize=(2.8 * len(chosen) + 0.5, 7), sharex=True, squeeze=False)
-    for c, (i, o) in enumerate(chosen):
-        k, m = outputs.index(o), inputs.index(i)
-        H = np.asarray(flight.response)[:, k, m]
-        gamma = np.clip(np.asarray(flight.coherence)[:, k, m], 0, 1)
-        colours = np.zeros((f.size, 4))
-        colours[:, 3] = 0.15 + 0.85 * gamma
-        axes[0, c].scatter(f, _decibels(H), s=6, c=colours, label="flight")
-        axes[1, c].scatter(f, np.degrees(np.angle(H)), s=6, c=colours)
-        for j, (label, response) in enumerate(models.items()):
-            Hm = np.asarray(response)[:, k, m]
-            colour = "C3" if len(models) == 1 else f"C{j % 10}"  # the time-domain plots' colours
-            axes[0, c].plot(f, _decibels(Hm), color=colour, lw=1.2, label=label)
-            axes[1, c].plot(f, np.degrees(np.angle(Hm)), color=colour, lw=1.2)
-        axes[2, c].plot(f, gamma, color="C2", lw=1.0)
-        axes[2, c].set_ylim(0, 1.02)
-        axes[0, c].set_title(f"{i} -> {o}", fontsize=9)
-        axes[2, c].set_xlabel("frequency [Hz]")
-        for ax in axes[:, c]:
-            ax.set_xscale("log")
-            ax.grid(alpha=0.3, which="both")
-    axes[0, 0].set_ylabel("magnitude [dB]")
-    axes[1, 0].set_ylabel("phase [deg]")
-    axes[2, 0].set_ylabel("partial coherence")
-    axes[0, 0].legend(fontsize=7)
-    if title:
-        fig.suptitle(title)
     fig.tight_layout()
     return _save(fig, path)

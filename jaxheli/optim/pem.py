@@ -86,7 +86,8 @@ def fitted_problem(
     return problem
 
 
-def _start(start: Float[ArrayLike, "40"] | None, bounds: Bounds) -> np.ndarray:
+def start_vector(start: Float[ArrayLike, "40"] | None, bounds: Bounds) -> np.ndarray:
+    """A solver's start: ``start[40]`` checked, or the middle of ``bounds``."""
     theta = bounds.midpoint() if start is None else np.asarray(start, dtype=np.float64)
     if theta.shape != (N_PARAMS,) or not np.all(np.isfinite(theta)):
         raise ValueError(f"start must be 40 finite parameters, got shape {theta.shape}")
@@ -117,10 +118,7 @@ class _Boxed(eqx.Module):
 
     def theta(self, v: Float[Array, " n"]) -> Float[Array, "40"]:
         """Physical parameters: the free axes from ``v`` (unclipped), the others from ``base``."""
-        mask = np.array(self.free)
-        bounds = self.problem.bounds
-        unit = bounds.to_unit(self.base).at[np.flatnonzero(mask)].set(v[: self.n_free])
-        return jnp.where(mask, bounds.from_unit(unit), self.base)
+        return self.problem.bounds.embed(self.base, np.array(self.free), v[: self.n_free])
 
     def v0(self) -> Float[Array, " n"]:
         """The start: ``base`` and (``fit_x0``) each record's initial state."""
@@ -183,7 +181,7 @@ def _solve(
     return pair[pick], x0, cost[0], cost[pick], rss[0], rss[pick], sol.stats["num_steps"], sol.result
 
 
-def _least_squares(solver: Solver, rtol: float, atol: float) -> optx.AbstractLeastSquaresSolver:
+def least_squares_solver(solver: Solver, rtol: float, atol: float) -> optx.AbstractLeastSquaresSolver:
     """The optimistix solver; its linear steps solve the normal equations by SVD (a pseudo-inverse).
 
     ``n_free`` is small, so ``J^T J`` (35 x 35) is cheap and the SVD copes with the exactly unresolved
@@ -321,9 +319,9 @@ def fit(
     :func:`pem` and :func:`~jaxheli.optim.polish.polish`); over several records the residuals are concatenated,
     so the sums of squares (and the paper's costs reported) add. ``fit_x0`` fits each record's initial state
     too, from the one its simulator starts from."""
-    base, mask = _start(start, problem.bounds), problem.bounds.free_mask(free)
+    base, mask = start_vector(start, problem.bounds), problem.bounds.free_mask(free)
     boxed = _Boxed(problem, jnp.asarray(base), tuple(bool(m) for m in mask), objective, fit_x0)
-    raw = _solve(boxed, _least_squares(solver, rtol, atol), int(max_steps))
+    raw = _solve(boxed, least_squares_solver(solver, rtol, atol), int(max_steps))
     settings = {"objective": objective, "solver": solver, "max_steps": int(max_steps), "rtol": rtol, "atol": atol,
                 "fit_x0": fit_x0,
                 "simulator": [part.sim.describe() for part in parts(problem)] if isinstance(problem, Records)

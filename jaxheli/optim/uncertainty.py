@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Literal
 
 import equinox as eqx
 import jax
@@ -101,13 +101,15 @@ def from_residuals(
     rcond: float = 1e-8,
     null_tol: float = 1e-6,
     bounds: Bounds | None = None,
+    nonfinite: Literal["raise", "unresolved"] = "raise",
 ) -> Uncertainty:
     """Standard errors of ``theta`` for a residual function ``fn(theta[40]) -> r[m]`` (jit-traceable).
 
     ``free`` (mask or names, default every axis ``bounds`` leave free; default bounds: the authors') are the
     estimated ones; ``rcond`` is the
     relative singular-value cutoff of the pseudo-inverse, ``null_tol`` the weight in a dropped direction
-    that marks a parameter unresolved.
+    that marks a parameter unresolved. Residuals or Jacobian not finite at ``theta`` (a model that diverges)
+    raise, or with ``nonfinite="unresolved"`` leave every free parameter unresolved (standard error inf).
     """
     theta = np.asarray(theta, dtype=np.float64)
     if theta.shape != (N_PARAMS,):
@@ -116,7 +118,11 @@ def from_residuals(
     idx = np.flatnonzero(mask)
     r, J = (np.asarray(v, dtype=np.float64) for v in _jacobian(fn, jnp.asarray(theta), jnp.asarray(idx)))
     if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J))):
-        raise ValueError("from_residuals: residuals or Jacobian are not finite at theta")
+        if nonfinite == "raise":
+            raise ValueError("from_residuals: residuals or Jacobian are not finite at theta")
+        stderr = np.where(mask, np.inf, 0.0)
+        return Uncertainty(theta, stderr, stderr, np.eye(N_PARAMS), mask, np.zeros(N_PARAMS, bool), np.zeros(0), 0,
+                           float("nan"), 0)
     if r.size <= idx.size:
         raise ValueError(f"from_residuals: {r.size} residuals for {idx.size} free parameters; need more residuals")
     norms = np.linalg.norm(J, axis=0)
@@ -153,6 +159,7 @@ def standard_errors(
     free: Free = None,
     rcond: float = 1e-8,
     null_tol: float = 1e-6,
+    nonfinite: Literal["raise", "unresolved"] = "raise",
     **settings: Any,
 ) -> Uncertainty:
     """Standard errors of ``theta`` (an optimum of :func:`jaxheli.optim.pem.pem`) on a record.
@@ -161,12 +168,12 @@ def standard_errors(
     :class:`~jaxheli.problem.Records`): a :class:`~jaxheli.problem.Problem`, or a
     flight under PEM's defaults with :class:`~jaxheli.problem.Settings` fields in ``settings`` (``outputs``,
     ``segment`` s, ``hold``, ``x0``, ``g``); ``free`` defaults to every axis the problem's bounds leave free;
-    ``rcond``, ``null_tol`` as in :func:`from_residuals`.
+    ``rcond``, ``null_tol``, ``nonfinite`` as in :func:`from_residuals`.
     """
     problem = fitted_problem(data, PEM_DEFAULTS, **settings)
     mask = problem.bounds.free_mask(free)
     return from_residuals(eqx.Partial(residuals, problem), theta, free=mask, rcond=rcond, null_tol=null_tol,
-                          bounds=problem.bounds)
+                          bounds=problem.bounds, nonfinite=nonfinite)
 
 
 def cramer_rao_coverage(

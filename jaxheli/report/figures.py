@@ -1,5 +1,5 @@
-"""The report's PNG figures, rendered in memory with the plotting functions of :mod:`jaxheli.plots` and
-:mod:`jaxheli.gap.plots`: time-domain verification, flight against model frequency responses, convergence."""
+"""The report's PNG figures, rendered in memory with the plotting functions of :mod:`jaxheli.plots`: time-domain
+verification, flight against model frequency responses, convergence."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from ..data.flight import FlightData
-from ..gap.frequency import FrequencyResponse
-from ..plots import plot_convergence, plot_time_domain
+from ..spectra import FrequencyResponse
+from ..plots import plot_convergence, plot_frequency_response, plot_time_domain
 from .inputs import ResultSource
 
 
@@ -37,9 +37,7 @@ def frequency_png(
     pairs: Sequence[tuple[str, str]], title: str,
 ) -> bytes:
     """Bode plots (magnitude, phase, partial coherence) of the flight estimate against each model's response
-    ``{label: [F, k, 4]}`` on the (input, output) ``pairs`` (:func:`jaxheli.gap.plots.plot_frequency_response`)."""
-    from ..gap.plots import plot_frequency_response
-
+    ``{label: [F, k, 4]}`` on the (input, output) ``pairs`` (:func:`jaxheli.plots.plot_frequency_response`)."""
     return _render(plot_frequency_response, estimate, models, tuple(channels), pairs=tuple(pairs), title=title)
 
 

@@ -160,8 +160,8 @@ def verification(results: Sequence[ResultSource], flights: Sequence[FlightData])
 def frequency_response(results: Sequence[ResultSource], flights: Sequence[FlightData]) -> Html:
     """Flight frequency responses (Welch, conditioned on all sticks) with partial coherence against each model's
     response, and the CIFER mismatch per on-axis pair."""
-    from ..gap.frequency import estimate_frequency_response, mismatch, model_frequency_response
-    from ..gap.plots import PRIMARY_PAIRS
+    from ..spectra import estimate_frequency_response, mismatch, model_frequency_response
+    from ..plots import PRIMARY_PAIRS
     from ..model import INPUT_NAMES
 
     if not flights:

@@ -1,4 +1,6 @@
-"""Frequency responses: Welch MIMO estimates from flight data and the model's own response.
+"""Frequency responses: Welch MIMO estimates from flight data, the model's own response, and the CIFER cost
+between them (shared by frequency-domain identification, :mod:`jaxheli.optim.frequency_fit`, and the gap
+diagnosis, :mod:`jaxheli.gap`).
 
 The flight estimate follows the rotorcraft practice (CIFER): Welch cross-spectra over Hann-windowed,
 overlapping segments, and conditioned multi-input responses ``H = Gyu Guu^-1``, so that correlated
@@ -20,11 +22,11 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.signal
 import scipy.stats
-from jaxtyping import Complex
+from jaxtyping import Bool, Complex
 
-from .._types import Array, ArrayLike, Float, Params
-from ..sim.discretize import discretize
-from ..model import G_SI, build_ab, output_matrix
+from ._types import Array, ArrayLike, Float, Params
+from .sim.discretize import discretize
+from .model import G_SI, build_ab, output_matrix
 
 _RIDGE = 1e-9
 """Diagonal loading of the input block, relative to the strongest input at each frequency: an input
@@ -233,8 +235,7 @@ def mismatch(
     ``min_coherence``: ``bins`` used, mean magnitude error (dB, model over flight), mean absolute phase
     error (deg) and the CIFER cost ``J = 20 mean[W_g (dB error)^2 + 0.01745 (deg error)^2]`` with coherence
     weight ``(1.58 (1 - exp(-gamma^2)))^2``, ``gamma^2`` the partial coherence (``J <= 100``: acceptable,
-    ``<= 50``: excellent); NaN where no bin
-    qualifies."""
+    ``<= 50``: excellent, :func:`cifer_cost`); NaN where no bin qualifies."""
     H = np.asarray(estimate.response)
     Hm = np.asarray(model)
     if Hm.shape != H.shape:
@@ -242,15 +243,67 @@ def mismatch(
     gamma = np.asarray(estimate.coherence)
     f = np.asarray(estimate.freq)[:, None, None]
     use = (gamma >= min_coherence) & (f >= band[0]) & (f <= band[1])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        mag = 20.0 * np.log10(np.abs(Hm) / np.abs(H))
-        phase = np.degrees(np.angle(Hm * np.conj(H)))
-        weight = (1.58 * (1.0 - np.exp(-gamma))) ** 2
-        bins = use.sum(axis=0)
-        den = np.where(bins > 0, bins, np.nan)
-        return {
-            "bins": bins,
-            "magnitude_db": np.where(use, mag, 0.0).sum(axis=0) / den,
-            "phase_deg": np.where(use, np.abs(phase), 0.0).sum(axis=0) / den,
-            "cifer_j": 20.0 * np.where(use, weight * (mag**2 + 0.01745 * phase**2), 0.0).sum(axis=0) / den,
-        }
+    mag, phase = (np.asarray(e) for e in response_errors(np.where(use, Hm, 1.0), np.where(use, H, 1.0)))
+    bins = use.sum(axis=0)
+    den = np.where(bins > 0, bins, np.nan)
+    return {
+        "bins": bins,
+        "magnitude_db": np.where(use, mag, 0.0).sum(axis=0) / den,
+        "phase_deg": np.where(use, np.abs(phase), 0.0).sum(axis=0) / den,
+        "cifer_j": np.asarray(cifer_cost(Hm, H, gamma, use)),
+    }
+
+
+_FLOOR_DB = -200.0
+"""Magnitude error, dB, below which a model response counts as zero."""
+
+W_PHASE = 0.01745
+"""CIFER's phase weight against the magnitude's (``W_g = 1``): 1 deg of phase error weighs as 0.132 dB."""
+
+
+def coherence_weight(coherence: Float[ArrayLike, "*shape"]) -> Float[Array, "*shape"]:
+    """CIFER's weight ``(1.58 (1 - exp(-gamma^2)))^2`` of a bin with partial coherence ``gamma^2`` (~1 at 1)."""
+    return (1.58 * (1.0 - jnp.exp(-jnp.asarray(coherence)))) ** 2
+
+
+def response_errors(
+    model: Complex[ArrayLike, "*shape"], flight: Complex[ArrayLike, "*shape"]
+) -> tuple[Float[Array, "*shape"], Float[Array, "*shape"]]:
+    """Magnitude error ``20 log10 |model / flight|`` (dB) and phase error ``angle(model / flight)`` (deg, wrapped
+    into (-180, 180]); differentiable in ``model`` (``flight`` must be non-zero). A model response of zero reads
+    as :data:`_FLOOR_DB` with phase error 0 (finite, zero gradient)."""
+    ratio = jnp.asarray(model) / jnp.asarray(flight)
+    re, im = jnp.real(ratio), jnp.imag(ratio)
+    power = re**2 + im**2
+    live = power > 10.0 ** (_FLOOR_DB / 10.0)
+    mag = 10.0 * jnp.log10(jnp.where(live, power, 10.0 ** (_FLOOR_DB / 10.0)))
+    phase = jnp.degrees(jnp.arctan2(jnp.where(live, im, 0.0), jnp.where(live, re, 1.0)))
+    return mag, phase
+
+
+def cifer_residuals(
+    model: Complex[ArrayLike, "F k m"],
+    flight: Complex[ArrayLike, "F k m"],
+    coherence: Float[ArrayLike, "F k m"],
+    use: Bool[ArrayLike, "F k m"],
+) -> Float[Array, "2 F k m"]:
+    """Residuals whose squares sum (over the first two axes) to Tischler's cost of each pair,
+    ``J = 20 / n_w sum_w W_gamma [(dB error)^2 + W_PHASE (deg error)^2]`` over the ``n_w`` bins in ``use``
+    (:func:`response_errors`, :func:`coherence_weight`); zero off ``use``."""
+    use = jnp.asarray(use)
+    n = jnp.sum(use, axis=0)
+    w = jnp.where(use, 20.0 * coherence_weight(coherence) / jnp.maximum(n, 1)[None], 0.0)
+    mag, phase = response_errors(jnp.where(use, model, 1.0), jnp.where(use, flight, 1.0))
+    return jnp.stack([jnp.sqrt(w) * mag, jnp.sqrt(w * W_PHASE) * phase])
+
+
+def cifer_cost(
+    model: Complex[ArrayLike, "F k m"],
+    flight: Complex[ArrayLike, "F k m"],
+    coherence: Float[ArrayLike, "F k m"],
+    use: Bool[ArrayLike, "F k m"],
+) -> Float[Array, "k m"]:
+    """Tischler's cost ``J`` of each (output, input) pair over the bins in ``use`` (:func:`cifer_residuals`);
+    NaN for a pair without a bin. ``J <= 100``: acceptable, ``<= 50``: excellent."""
+    J = jnp.sum(cifer_residuals(model, flight, coherence, use) ** 2, axis=(0, 1))
+    return jnp.where(jnp.any(jnp.asarray(use), axis=0), J, jnp.nan)
