@@ -7,8 +7,8 @@ channels. The predictor is the multiple-shooting simulator (:func:`jaxheli.make_
 hover model still gives bounded residuals. The solve is one ``optimistix.least_squares`` call
 (Levenberg-Marquardt or Gauss-Newton) on the free parameters in the unit box coordinates of
 :class:`jaxheli.bounds.Bounds` (each axis normalised to its bound width). Bounds: the residuals carry a
-penalty ``PENALTY (u - clip(u))`` (:meth:`~jaxheli.bounds.Bounds.penalty`), scaled to the start's misfit
-(:data:`WEIGHT_PER_MISFIT`), on the distance outside the box, so the solver overshoots a bound only slightly, and its answer is clipped into the box. Unlike a sigmoid map ``lower + width sigmoid(z)``, this
+penalty ``PENALTY (u - clip(u))`` (:meth:`~jaxheli.bounds.Bounds.penalty`) on the distance outside the box, so the solver overshoots a bound only
+slightly, and its answer is clipped into the box. Unlike a sigmoid map ``lower + width sigmoid(z)``, this
 keeps unit slope at and near a bound (a sigmoid flattens there and froze parameters that started within
 0.1 % of a bound, e.g. ``Nr`` at -10, in our tests).
 
@@ -44,12 +44,6 @@ Solver = Literal["lm", "gn"]
 
 _BIG = 1e3
 """Normalised residual (signal standard deviations) past which it is compressed logarithmically."""
-
-WEIGHT_PER_MISFIT = 0.1
-"""The box penalty's weight per unit of the start's residual norm (at least 1). A fixed weight let a poor start's
-large misfit outbid it: on an R-50 record (start sum of squares 1.6e5) 100 or 200 Levenberg-Marquardt steps
-wandered ~0.3 box widths past bounds and their clipped answer was worse than the start, while 30 steps cut the sum
-of squares 11-fold. Scaled, a step of 1 % of a bound's width past it costs about the whole start misfit."""
 
 def pem_residuals(problem: Problem, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch Nk"]:
     """Normalised, divergence-safe errors ``(y - meas) / std(meas)``, flattened (time-major)."""
@@ -107,9 +101,9 @@ class _Boxed(eqx.Module):
     """An objective's residuals as a function of ``v``: the unit coordinates of the free axes, then (``fit_x0``)
     each record's 13-vector initial state, physical units.
 
-    ``weight PENALTY (u - clip(u))`` is appended to the residuals: zero in the box, it makes the sum of squares
+    ``PENALTY (u - clip(u))`` is appended to the residuals: zero in the box, it makes the sum of squares
     rise steeply (but smoothly, C1) past a bound, so the solver may overshoot a bound only slightly and
-    the answer is clipped into the box. ``weight`` scales it to the start's misfit (:func:`_solve`).
+    the answer is clipped into the box.
     """
 
     problem: Problem | Records
@@ -117,7 +111,6 @@ class _Boxed(eqx.Module):
     free: tuple[bool, ...] = eqx.field(static=True)
     objective: Objective = eqx.field(static=True)
     fit_x0: bool = eqx.field(static=True, default=False)
-    weight: Float[Array, ""] | float = 1.0
 
     @property
     def n_free(self) -> int:
@@ -151,7 +144,7 @@ class _Boxed(eqx.Module):
 def _residual(v: Array, boxed: _Boxed) -> Array:
     theta, u = boxed.theta(v), v[: boxed.n_free]
     fits = [boxed.of_outputs(part, sim(theta)) for part, sim in zip(parts(boxed.problem), boxed.simulators(v))]
-    return jnp.concatenate(fits + [boxed.weight * Bounds.penalty(u)])
+    return jnp.concatenate(fits + [Bounds.penalty(u)])
 
 
 def _scores(theta: Array, v: Array, boxed: _Boxed) -> tuple[Array, Array, Array]:
@@ -175,8 +168,6 @@ def _solve(
     simulated together in one vmapped run (one copy of the simulator in the compiled program).
     """
     v0 = boxed.v0()
-    misfit = jnp.sqrt(jnp.sum(_residual(v0, boxed) ** 2))
-    boxed = eqx.tree_at(lambda b: b.weight, boxed, jnp.maximum(1.0, WEIGHT_PER_MISFIT * misfit))
     sol = optx.least_squares(_residual, solver, v0, args=boxed, max_steps=max_steps, throw=False)
     v1 = sol.value.at[: boxed.n_free].set(Bounds.clip_unit(sol.value[: boxed.n_free]))
     pair, vs = jnp.stack([boxed.base, boxed.theta(v1)]), jnp.stack([v0, v1])
