@@ -20,18 +20,33 @@ from jaxheli.io.paths import data_dir  # noqa: E402
 REQUIRE_DATA = os.environ.get("JAXHELI_REQUIRE_DATA", "") not in ("", "0")
 
 
+MAX_MAPPINGS = 30_000
+"""Memory mappings past which a worker drops its compiled programs (Linux's default limit: 65,530)."""
+
+
+def _mappings() -> int:
+    """Memory mappings of this process (0 where ``/proc`` does not list them)."""
+    try:
+        with open("/proc/self/maps", "rb") as maps:
+            return sum(1 for _ in maps)
+    except OSError:
+        return 0
+
+
 @pytest.fixture(scope="module", autouse=True)
 def _release_compiled_programs():
-    """Drop every compiled program after each test file.
+    """Drop every compiled program after a test file once the process holds many memory mappings.
 
     Each XLA:CPU executable holds a few memory mappings of JIT code; a long-lived xdist worker that compiles
-    the whole suite's programs passes Linux's default limit of 65,530 mappings (``vm.max_map_count``) and
-    the next compile crashes the worker (segfault or abort inside ``backend_compile_and_load``). Clearing
-    JAX's caches lets the executables be freed; a file's own programs stay cached while it runs.
+    the whole suite's programs passes Linux's default limit of 65,530 mappings (``vm.max_map_count``; 65,523
+    measured near the end of a full run) and the next compile crashes the worker (segfault or abort inside
+    ``backend_compile_and_load``). Clearing JAX's caches lets the executables be freed; clearing only past
+    :data:`MAX_MAPPINGS` keeps programs that later files share compiled.
     """
     yield
-    jax.clear_caches()
-    gc.collect()
+    if _mappings() > MAX_MAPPINGS:
+        jax.clear_caches()
+        gc.collect()
 
 
 @pytest.fixture(scope="session")
