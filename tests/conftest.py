@@ -2,10 +2,14 @@
 
 import os
 
+# The suite's time goes mostly to compiling many small programs: a lower LLVM optimisation level compiles
+# them about 1.4x faster (tests/test_px4log_cli.py: 137 s -> 95 s) and leaves the arithmetic unchanged.
+_FLAGS = ["--xla_backend_optimization_level=0"]
 if os.environ.get("PYTEST_XDIST_WORKER"):
     # One busy thread per xdist worker: with `-n 2` on two cores, a worker that also spreads its XLA ops over
     # both cores only slows the other one down (the walkthrough notebook's kernel gets the same setting).
-    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen=false").strip()
+    _FLAGS.append("--xla_cpu_multi_thread_eigen=false")
+os.environ["XLA_FLAGS"] = " ".join([os.environ.get("XLA_FLAGS", ""), *_FLAGS]).strip()
 
 import gc  # noqa: E402
 

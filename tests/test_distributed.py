@@ -1,5 +1,5 @@
-"""Trials over several JAX processes: two real local processes (CPU, gloo) give what one process gives,
-bitwise, uneven splits and a process without trials included; per-process checkpoints resume.
+"""Trials over several JAX processes: two real local processes (CPU, gloo) give what one process gives
+(integers bitwise, floats to 2 ulp), uneven splits and a process without trials included; per-process checkpoints resume.
 
 Run as a script (``python tests/test_distributed.py OUT``) this file is one worker of that group.
 """
@@ -76,7 +76,12 @@ def test_two_processes_equal_one(tmp_path):
             got = [saved[f"arr_{i}"] for i in range(len(reference))]
         for mine, ref in zip(got, reference):
             assert mine.dtype == ref.dtype
-            np.testing.assert_array_equal(mine, ref)
+            if np.issubdtype(ref.dtype, np.floating):
+                # a batch of 2 or 3 trials may be vectorised differently from one of 5 (at the tests' LLVM
+                # optimisation level 0 one cost differed by 1 ulp): equal to 2 ulp
+                np.testing.assert_array_max_ulp(mine, ref, maxulp=2)
+            else:
+                np.testing.assert_array_equal(mine, ref)
         header = json.loads((tmp_path / f"iwo.eqx.proc{index}.json").read_text())
         assert header["iteration"] == 12 and len(header["key"]) == trials
 

@@ -9,8 +9,8 @@ cost (:func:`jaxheli.spectra.cifer_cost`)::
     W_g = 1, W_p = 0.01745 (deg), W_gamma = (1.58 (1 - exp(-gamma^2)))^2, phase error wrapped to (-180, 180]
 
 (``J <= 100`` per pair: acceptable, ``<= 50``: excellent). Levenberg-Marquardt minimises the sum of the pairs'
-``J`` as least squares on :func:`jaxheli.spectra.cifer_residuals`, in the unit coordinates of the bounds with
-PEM's penalty past a bound (:mod:`jaxheli.optim.pem`), from ``starts`` points at once (one vmapped solve): the
+``J`` as least squares on :func:`jaxheli.spectra.cifer_residuals`, in the unit coordinates of the bounds, its
+steps projected into the box (:mod:`jaxheli.optim.boxed_lm`, as PEM), from ``starts`` points at once (one vmapped solve): the
 given start, if any, and the best of many points drawn uniformly in the box (scoring ``J`` needs no simulation,
 so thousands cost seconds; the box's middle is a poor start: every control derivative is 0 there). The lowest
 average ``J`` wins. From the authors' wide box most starts still end in local minima (phase wrapping, the yaw
@@ -157,7 +157,7 @@ def _average_j(targets: tuple[FrequencyTarget, ...], theta: Array) -> Array:
 
 
 class _Boxed(eqx.Module):
-    """The residuals as a function of the free parameters' unit coordinates (PEM's box penalty appended)."""
+    """The residuals as a function of the free parameters' unit coordinates (in ``[0, 1]``)."""
 
     targets: tuple[FrequencyTarget, ...]
     bounds: Bounds
@@ -170,7 +170,7 @@ class _Boxed(eqx.Module):
 
 def _residual(v: Array, boxed: _Boxed) -> Array:
     theta = boxed.theta(v)
-    return jnp.concatenate([t.residuals(theta) for t in boxed.targets] + [Bounds.penalty(v)])
+    return jnp.concatenate([t.residuals(theta) for t in boxed.targets])
 
 
 @eqx.filter_jit
@@ -188,7 +188,7 @@ def _solve(
 
     def one(v):
         sol = optx.least_squares(_residual, solver, v, args=boxed, max_steps=max_steps, throw=False)
-        th0, th1 = boxed.theta(v), boxed.theta(Bounds.clip_unit(sol.value))
+        th0, th1 = boxed.theta(v), boxed.theta(sol.value)
         j0, j1 = _average_j(boxed.targets, th0), _average_j(boxed.targets, th1)
         better = jnp.all(jnp.isfinite(th1)) & (j1 <= j0)
         return (jnp.where(better, th1, th0), j0, jnp.where(better, j1, j0), sol.stats["num_steps"],
@@ -279,13 +279,13 @@ def frequency_fit(
     bounds = problem.bounds
     base, mask = start_vector(start, bounds), bounds.free_mask(free)
     boxed = _Boxed(targets, bounds, jnp.asarray(base), tuple(bool(m) for m in mask))
-    v0 = bounds.to_unit(jnp.asarray(base))[np.flatnonzero(mask)][None][: int(start is not None)]
+    v0 = Bounds.clip_unit(bounds.to_unit(jnp.asarray(base))[np.flatnonzero(mask)])[None][: int(start is not None)]
     wanted = starts - v0.shape[0]
     if wanted:
         drawn = jax.random.uniform(jax.random.PRNGKey(seed), (max(screen, wanted), v0.shape[1]), v0.dtype)
         v0 = jnp.concatenate([v0, drawn[jnp.argsort(_screen(boxed, drawn))[:wanted]]])
     theta, j0, j1, steps, ok = (np.asarray(a) for a in _solve(
-        boxed, v0, least_squares_solver(solver, rtol, atol), int(max_steps)))
+        boxed, v0, least_squares_solver(solver, rtol, atol, v0.shape[1]), int(max_steps)))
     best = int(np.argmin(j1))
     report = cifer_report(targets, theta[best])
     part = parts(problem)[0]

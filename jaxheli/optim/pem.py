@@ -6,11 +6,11 @@ channels. The predictor is the multiple-shooting simulator (:func:`jaxheli.make_
 ``segment``): it restarts from the measured states every ``segment`` seconds, so an open-loop unstable
 hover model still gives bounded residuals. The solve is one ``optimistix.least_squares`` call
 (Levenberg-Marquardt or Gauss-Newton) on the free parameters in the unit box coordinates of
-:class:`jaxheli.bounds.Bounds` (each axis normalised to its bound width). Bounds: the residuals carry a
-penalty ``PENALTY (u - clip(u))`` (:meth:`~jaxheli.bounds.Bounds.penalty`) on the distance outside the box, so the solver overshoots a bound only
-slightly, and its answer is clipped into the box. Unlike a sigmoid map ``lower + width sigmoid(z)``, this
-keeps unit slope at and near a bound (a sigmoid flattens there and froze parameters that started within
-0.1 % of a bound, e.g. ``Nr`` at -10, in our tests).
+:class:`jaxheli.bounds.Bounds` (each axis normalised to its bound width). Bounds: the solver's steps are
+projected into the box, axes at a bound whose gradient points out held there
+(:mod:`jaxheli.optim.boxed_lm`), so the model is only evaluated inside the box. Unlike a sigmoid map
+``lower + width sigmoid(z)``, this keeps unit slope at and near a bound (a sigmoid flattens there and froze
+parameters that started within 0.1 % of a bound, e.g. ``Nr`` at -10, in our tests).
 
 Several records (:class:`jaxheli.problem.Records`) concatenate their residuals, so the sums of squares add; the
 initial state of each can be fitted with the parameters (``fit``'s ``fit_x0``, as the output-error polish does).
@@ -28,7 +28,6 @@ from typing import Any, Literal
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import lineax as lx
 import numpy as np
 import optimistix as optx
 
@@ -39,8 +38,7 @@ from ..data.flight import FlightData
 from ..model import N_PARAMS, N_STATES, PARAM_NAMES
 from ..problem import Problem, Records, as_problem, parts
 from ..sim.simulate import Simulator
-
-Solver = Literal["lm", "gn"]
+from .boxed_lm import BoxedLeastSquares, Solver
 
 _BIG = 1e3
 """Normalised residual (signal standard deviations) past which it is compressed logarithmically."""
@@ -98,13 +96,8 @@ Objective = Literal["pem", "pearson"]
 
 
 class _Boxed(eqx.Module):
-    """An objective's residuals as a function of ``v``: the unit coordinates of the free axes, then (``fit_x0``)
-    each record's 13-vector initial state, physical units.
-
-    ``PENALTY (u - clip(u))`` is appended to the residuals: zero in the box, it makes the sum of squares
-    rise steeply (but smoothly, C1) past a bound, so the solver may overshoot a bound only slightly and
-    the answer is clipped into the box.
-    """
+    """An objective's residuals as a function of ``v``: the unit coordinates of the free axes (kept in
+    ``[0, 1]`` by the solver), then (``fit_x0``) each record's 13-vector initial state, physical units."""
 
     problem: Problem | Records
     base: Float[Array, "40"]
@@ -117,12 +110,12 @@ class _Boxed(eqx.Module):
         return sum(self.free)
 
     def theta(self, v: Float[Array, " n"]) -> Float[Array, "40"]:
-        """Physical parameters: the free axes from ``v`` (unclipped), the others from ``base``."""
+        """Physical parameters: the free axes from ``v``, the others from ``base``."""
         return self.problem.bounds.embed(self.base, np.array(self.free), v[: self.n_free])
 
     def v0(self) -> Float[Array, " n"]:
-        """The start: ``base`` and (``fit_x0``) each record's initial state."""
-        u = self.problem.bounds.to_unit(self.base)[np.flatnonzero(np.array(self.free))]
+        """The start: ``base`` (clipped into the box) and (``fit_x0``) each record's initial state."""
+        u = Bounds.clip_unit(self.problem.bounds.to_unit(self.base)[np.flatnonzero(np.array(self.free))])
         if not self.fit_x0:
             return u
         x0 = [part.sim.initial_states(1, u.dtype)[:, 0] for part in parts(self.problem)]
@@ -142,9 +135,9 @@ class _Boxed(eqx.Module):
 
 
 def _residual(v: Array, boxed: _Boxed) -> Array:
-    theta, u = boxed.theta(v), v[: boxed.n_free]
+    theta = boxed.theta(v)
     fits = [boxed.of_outputs(part, sim(theta)) for part, sim in zip(parts(boxed.problem), boxed.simulators(v))]
-    return jnp.concatenate(fits + [Bounds.penalty(u)])
+    return jnp.concatenate(fits)
 
 
 def _scores(theta: Array, v: Array, boxed: _Boxed) -> tuple[Array, Array, Array]:
@@ -169,7 +162,7 @@ def _solve(
     """
     v0 = boxed.v0()
     sol = optx.least_squares(_residual, solver, v0, args=boxed, max_steps=max_steps, throw=False)
-    v1 = sol.value.at[: boxed.n_free].set(Bounds.clip_unit(sol.value[: boxed.n_free]))
+    v1 = sol.value
     pair, vs = jnp.stack([boxed.base, boxed.theta(v1)]), jnp.stack([v0, v1])
     loss, cost, rss = jax.vmap(_scores, in_axes=(0, 0, None))(pair, vs, boxed)
     better = jnp.all(jnp.isfinite(pair[1])) & (loss[1] <= loss[0])
@@ -181,19 +174,12 @@ def _solve(
     return pair[pick], x0, cost[0], cost[pick], rss[0], rss[pick], sol.stats["num_steps"], sol.result
 
 
-def least_squares_solver(solver: Solver, rtol: float, atol: float) -> optx.AbstractLeastSquaresSolver:
-    """The optimistix solver; its linear steps solve the normal equations by SVD (a pseudo-inverse).
-
-    ``n_free`` is small, so ``J^T J`` (35 x 35) is cheap and the SVD copes with the exactly unresolved
-    directions (e.g. ``Nrfb``/``Kr``, which enter only as a product). Measured on a 751-sample, 8-channel
-    flight: 40 LM steps take ~1 s this way and ~18 s with lineax's default QR of the tall Jacobian.
-    """
-    linear_solver = lx.Normal(lx.SVD())
-    if solver == "lm":
-        return optx.LevenbergMarquardt(rtol=rtol, atol=atol, linear_solver=linear_solver)
-    if solver == "gn":
-        return optx.GaussNewton(rtol=rtol, atol=atol, linear_solver=linear_solver)
-    raise ValueError(f"solver must be 'lm' or 'gn', got {solver!r}")
+def least_squares_solver(solver: Solver, rtol: float, atol: float, n_bounded: int) -> BoxedLeastSquares:
+    """The least-squares solver whose first ``n_bounded`` unknowns stay in ``[0, 1]``
+    (:class:`~jaxheli.optim.boxed_lm.BoxedLeastSquares`): Levenberg-Marquardt (``"lm"``) or Gauss-Newton
+    (``"gn"``). ``n_free`` is small, so ``J^T J`` (35 x 35) is cheap and its eigen decomposition copes with the
+    exactly unresolved directions (e.g. ``Nrfb``/``Kr``, which enter only as a product)."""
+    return BoxedLeastSquares(rtol, atol, n_bounded, solver)
 
 
 _RESULT_NAMES = (
@@ -321,7 +307,7 @@ def fit(
     too, from the one its simulator starts from."""
     base, mask = start_vector(start, problem.bounds), problem.bounds.free_mask(free)
     boxed = _Boxed(problem, jnp.asarray(base), tuple(bool(m) for m in mask), objective, fit_x0)
-    raw = _solve(boxed, least_squares_solver(solver, rtol, atol), int(max_steps))
+    raw = _solve(boxed, least_squares_solver(solver, rtol, atol, boxed.n_free), int(max_steps))
     settings = {"objective": objective, "solver": solver, "max_steps": int(max_steps), "rtol": rtol, "atol": atol,
                 "fit_x0": fit_x0,
                 "simulator": [part.sim.describe() for part in parts(problem)] if isinstance(problem, Records)

@@ -1,0 +1,77 @@
+"""The box-constrained Levenberg-Marquardt / Gauss-Newton of the least-squares engines against scipy's bounded
+least squares (``lsq_linear`` and the trust-region-reflective ``least_squares``), and never outside the box."""
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+import pytest
+import scipy.optimize
+
+from jaxheli.optim.boxed_lm import BoxedLeastSquares
+
+
+def _solve(fn, y0, n_bounded, solver="lm", args=None, max_steps=200):
+    sol = optx.least_squares(fn, BoxedLeastSquares(1e-10, 1e-10, n_bounded, solver), jnp.asarray(y0), args=args,
+                             max_steps=max_steps, throw=False)
+    return np.asarray(sol.value), sol
+
+
+def _in_box(y, n_bounded):
+    """``y`` unchanged, or a runtime error if a bounded entry lies outside ``[0, 1]``."""
+    u = y[:n_bounded]
+    return eqx.error_if(y, jnp.any((u < 0.0) | (u > 1.0)), "a residual was evaluated outside the box")
+
+
+@pytest.fixture(scope="module")
+def linear():
+    """A 60 x 6 linear problem whose unbounded answer lies outside the unit box on several axes."""
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(60, 6))
+    x_free = np.array([-0.4, 0.3, 1.7, 0.6, 2.5, -1.0])
+    return a, a @ x_free + 0.01 * rng.normal(size=60)
+
+
+@pytest.mark.parametrize("solver", ["lm", "gn"])
+def test_linear_box_least_squares_matches_scipy(linear, solver):
+    a, b = linear
+    expected = scipy.optimize.lsq_linear(a, b, bounds=(0.0, 1.0), tol=1e-14).x
+    got, sol = _solve(lambda y, _: a @ _in_box(y, 6) - b, np.full(6, 0.5), 6, solver)
+    assert sol.result == optx.RESULTS.successful
+    np.testing.assert_allclose(got, expected, atol=1e-7)
+    assert {0, 4, 5} <= set(np.flatnonzero((got == 0.0) | (got == 1.0)))
+
+
+def test_nonlinear_fit_with_an_active_bound_matches_scipy_trf():
+    """``c0 exp(-c1 t) + c2 + c3 t`` with the decay rate capped below its unbounded optimum; the slope ``c3``
+    is unbounded (as a fitted initial state is) and its optimum lies outside ``[0, 1]``."""
+    t = np.linspace(0.0, 4.0, 80)
+    data = 0.8 * np.exp(-1.6 * t) + 0.2 - 1.5 * t
+
+    def res(y, _):
+        y = _in_box(y, 3)
+        return y[0] * jnp.exp(-y[1] * t) + y[2] + y[3] * t - data
+
+    lower, upper = np.array([0.0, 0.0, 0.0, -np.inf]), np.array([1.0, 1.0, 1.0, np.inf])
+    expected = scipy.optimize.least_squares(lambda y: np.asarray(res(jnp.asarray(y), None)), [0.5, 0.5, 0.5, 0.0],
+                                            bounds=(lower, upper), method="trf", xtol=1e-14, ftol=1e-14,
+                                            gtol=1e-14).x
+    got, _ = _solve(res, [0.5, 0.5, 0.5, 0.0], 3)
+    assert got[1] == 1.0  # the decay rate is held at its bound
+    np.testing.assert_allclose(got, expected, atol=1e-6)
+
+
+def test_an_axis_leaves_a_bound_when_its_gradient_turns():
+    """Started on the lower bound of an axis whose optimum is inside: the active set releases it."""
+    got, _ = _solve(lambda y, _: jnp.stack([_in_box(y, 2)[0] - 0.3, 10.0 * (y[1] - y[0] ** 2)]), [0.0, 1.0], 2)
+    np.testing.assert_allclose(got, [0.3, 0.09], atol=1e-8)
+
+
+def test_unbounded_tail_is_not_clipped():
+    got, _ = _solve(lambda y, _: jnp.stack([y[0] - 2.0, y[1] + 3.0]), [0.5, 0.0], 1)
+    np.testing.assert_allclose(got, [1.0, -3.0], atol=1e-10)
+
+
+def test_bad_solver_name():
+    with pytest.raises(ValueError, match="'lm' or 'gn'"):
+        BoxedLeastSquares(1e-8, 1e-8, 1, "newton")
