@@ -9,9 +9,9 @@ cost (:func:`jaxheli.spectra.cifer_cost`)::
     W_g = 1, W_p = 0.01745 (deg), W_gamma = (1.58 (1 - exp(-gamma^2)))^2, phase error wrapped to (-180, 180]
 
 (``J <= 100`` per pair: acceptable, ``<= 50``: excellent). Levenberg-Marquardt minimises the sum of the pairs'
-``J`` as least squares on :func:`jaxheli.spectra.cifer_residuals`, in the unit coordinates of the bounds, its
-steps projected into the box (:mod:`jaxheli.optim.boxed_lm`, as PEM), from ``starts`` points at once (one vmapped solve): the
-given start, if any, and the best of many points drawn uniformly in the box (scoring ``J`` needs no simulation,
+``J`` as least squares on :func:`jaxheli.spectra.cifer_residuals`, in the unit coordinates of the bounds with
+PEM's penalty past a bound and its margin (:mod:`jaxheli.optim.pem`), from ``starts`` points at once (one
+vmapped solve): the given start, if any, and the best of many points drawn uniformly in the box (scoring ``J`` needs no simulation,
 so thousands cost seconds; the box's middle is a poor start: every control derivative is 0 there). The lowest
 average ``J`` wins. From the authors' wide box most starts still end in local minima (phase wrapping, the yaw
 feedback loop): use several, a narrower box, or the time-domain polish afterwards.
@@ -157,7 +157,7 @@ def _average_j(targets: tuple[FrequencyTarget, ...], theta: Array) -> Array:
 
 
 class _Boxed(eqx.Module):
-    """The residuals as a function of the free parameters' unit coordinates (in ``[0, 1]``)."""
+    """The residuals as a function of the free parameters' unit coordinates (PEM's box penalty appended)."""
 
     targets: tuple[FrequencyTarget, ...]
     bounds: Bounds
@@ -170,7 +170,7 @@ class _Boxed(eqx.Module):
 
 def _residual(v: Array, boxed: _Boxed) -> Array:
     theta = boxed.theta(v)
-    return jnp.concatenate([t.residuals(theta) for t in boxed.targets])
+    return jnp.concatenate([t.residuals(theta) for t in boxed.targets] + [Bounds.penalty(v)])
 
 
 @eqx.filter_jit
@@ -188,7 +188,7 @@ def _solve(
 
     def one(v):
         sol = optx.least_squares(_residual, solver, v, args=boxed, max_steps=max_steps, throw=False)
-        th0, th1 = boxed.theta(v), boxed.theta(sol.value)
+        th0, th1 = boxed.theta(v), boxed.theta(Bounds.clip_unit(sol.value))
         j0, j1 = _average_j(boxed.targets, th0), _average_j(boxed.targets, th1)
         better = jnp.all(jnp.isfinite(th1)) & (j1 <= j0)
         return (jnp.where(better, th1, th0), j0, jnp.where(better, j1, j0), sol.stats["num_steps"],

@@ -6,7 +6,8 @@ and offsets are identified, which the paper's Pearson cost cannot see. ``objecti
 paper's cost ``C = sum_i (1 - rho_i)^2`` (Eq. 7) as the least-squares problem on the vector ``1 - rho`` (one
 residual per output channel): Levenberg-Marquardt sees exactly the paper's cost (the paper's pure pipeline).
 ``objective="pem"`` minimises the prediction-error sum of squares of :func:`jaxheli.optim.pem.pem` under the
-given simulation settings as they are. Bounds hold as in PEM (steps projected into the box). The answer is never worse than the start on the objective polished: where the solver does not improve it,
+given simulation settings as they are. Bounds hold as in PEM (a penalty past the box, steps within a margin of
+it). The answer is never worse than the start on the objective polished: where the solver does not improve it,
 the start comes back unchanged.
 """
 
