@@ -39,6 +39,10 @@ def test_quick_bench_writes_json_markdown_and_plot(tmp_path):
     experiment = result["experiment"]
     assert experiment["trials"] == 2 and experiment["iterations"] == 3 and len(experiment["best_cost"]) == 2
     assert experiment["seeds"] <= experiment["evaluations"]
+    pem_row, iwo_row = result["time_to_model"]
+    assert pem_row["method"] == "pem" and pem_row["steps"] <= 3 and pem_row["rss"] <= pem_row["rss_start"]
+    assert iwo_row["method"] == "iwo+polish" and iwo_row["samples"] == 300 and iwo_row["numpy_ratio"] > 0
+    assert set(iwo_row["fit_percent"]) >= {"p", "q", "phi", "theta"} and all(r["seconds"] > 0 for r in (pem_row, iwo_row))
     text = (tmp_path / "bench.md").read_text()
-    assert "blocked x NumPy" in text and "paper's whole experiment" in text
+    assert "blocked x NumPy" in text and "paper's whole experiment" in text and "Time to a model" in text
     assert (tmp_path / "throughput.png").stat().st_size > 10_000

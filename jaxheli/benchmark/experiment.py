@@ -16,6 +16,11 @@ from ..sim.population import PopulationCost
 from ..sim.simulate import make_simulator
 
 
+def iwo_evaluations(opt: IWO, trials: int = 1) -> int:
+    """Candidates ``trials`` runs of ``opt`` score: every slot of IWO's fixed seed buffer, each generation."""
+    return trials * (opt.iterations * opt.max_population * opt.max_seeds + opt.initial_population)
+
+
 def paper_experiment(
     flight: FlightData,
     *,
@@ -40,7 +45,7 @@ def paper_experiment(
     result = minimize_trials(opt, cost, keys, chunk=min(chunk, iterations), progress=progress)
     best = np.asarray(jax.block_until_ready(result.best_cost))
     seconds = time.perf_counter() - t0
-    scored = trials * (iterations * opt.max_population * opt.max_seeds + opt.initial_population)
+    scored = iwo_evaluations(opt, trials)
     return {
         "flight": flight.source,
         "samples": flight.n_samples,

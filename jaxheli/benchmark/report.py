@@ -35,6 +35,14 @@ def markdown(result: dict) -> str:
                   f"including compilation, {e['evaluations']:,} candidates scored ({e['evaluations_per_s']:.0f}/s). "
                   f"The per-candidate NumPy loop would take {base:.0f} s ({base / 3600:.1f} h): "
                   f"{base / e['seconds']:.0f}x longer."]
+    if result.get("time_to_model"):
+        lines += ["", "## Time to a model (compilation included)", "",
+                  "| method | samples | s | NumPy loop s | ratio | fit % p / q / phi / theta |", "|---|---|---|---|---|---|"]
+        for r in result["time_to_model"]:
+            fit = " / ".join(f"{r['fit_percent'][c]:.1f}" for c in ("p", "q", "phi", "theta")
+                             if c in r.get("fit_percent", {})) or f"RSS {r['rss']:.4g} ({r['steps']} steps)"
+            numpy = f"{r['numpy_seconds']:.0f} | {r['numpy_ratio']:.0f}x" if "numpy_seconds" in r else "- | -"
+            lines.append(f"| {r['method']} | {r['samples']} | {r['seconds']:.1f} | {numpy} | {fit} |")
     if result.get("scaling"):
         lines += ["", "## Sharding over local devices", "", "| dtype | N | P | 1 device /s | "
                   f"{result['devices']} devices /s | speed-up | efficiency |", "|---|---|---|---|---|---|---|"]

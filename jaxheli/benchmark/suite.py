@@ -13,7 +13,7 @@ if TYPE_CHECKING:
 SCAN_LIMIT = 4.0e7
 """The plain scan materialises ``[P, N, k]`` outputs: larger ``P * N`` are skipped (memory, not speed)."""
 QUICK = dict(sizes=[16, 64], samples=[300], dtypes=["float32"], generations=2, experiment_iterations=3, trials=2,
-             repeats=1)
+             repeats=1, model_iterations=3, pem_steps=3)
 """Tiny settings of :func:`measure` (a smoke test, seconds)."""
 
 
@@ -27,6 +27,9 @@ def measure(
     experiment_iterations: int,
     trials: int,
     experiment_data: str | None = None,
+    model_methods: Sequence[str] = (),
+    model_iterations: int = 1000,
+    pem_steps: int = 200,
     quick: bool = False,
     settings: dict[str, Any] | None = None,
 ) -> dict:
@@ -36,8 +39,11 @@ def measure(
     flight length ``samples`` and population size ``sizes``; seconds per IWO generation, timed over
     ``generations`` (0: skip); the paper's experiment, ``trials`` x ``experiment_iterations`` generations
     (0: skip), on the flight file ``experiment_data`` (default: flight A from the shared data if present, else
-    a synthetic 8590-sample flight; with ``quick`` the shortest synthetic flight of ``samples``). ``settings``
-    is recorded as the result's ``settings`` (default: these arguments).
+    a synthetic 8590-sample flight; with ``quick`` the shortest synthetic flight of ``samples``); the time to a
+    model of each of ``model_methods`` (:func:`~jaxheli.benchmark.time_to_model.time_to_model`, ``model_iterations``
+    generations, ``pem_steps`` PEM steps) on flight A prepared as the paper comparison does (with ``quick``, or
+    without the shared data: the experiment's flight). ``settings`` is recorded as the result's ``settings``
+    (default: these arguments).
     """
     import jax
     import jax.numpy as jnp
@@ -56,6 +62,7 @@ def measure(
         "settings": settings if settings is not None else {
             "sizes": sizes, "samples": samples, "dtypes": dtypes, "repeats": repeats, "generations": generations,
             "experiment_iterations": experiment_iterations, "trials": trials, "experiment_data": experiment_data,
+            "model_methods": list(model_methods), "model_iterations": model_iterations, "pem_steps": pem_steps,
             "quick": quick},
         "matmul_peak_flops": {},
         "rates": [],
@@ -96,7 +103,26 @@ def measure(
     if experiment_iterations > 0:
         flight = bench_flight(min(samples)) if quick else _experiment_flight(experiment_data)
         result["experiment"] = _experiment(flight, trials, experiment_iterations, baselines)
+    if model_methods:
+        result["time_to_model"] = _time_to_model(model_methods, model_iterations, pem_steps, baselines, quick,
+                                                 flights, experiment_data)
     return result
+
+
+def _time_to_model(methods: Sequence[str], iterations: int, pem_steps: int, baselines: dict[int, float],
+                   quick: bool, flights: dict[int, FlightData], experiment_data: str | None) -> list[dict]:
+    from .baseline import numpy_rate
+    from .time_to_model import paper_training_flight, time_to_model
+
+    if quick:
+        flight = flights[min(flights)]
+    else:
+        try:
+            flight = paper_training_flight()
+        except FileNotFoundError:
+            flight = _experiment_flight(experiment_data)
+    rate = baselines.get(flight.n_samples) or numpy_rate(flight, 4)
+    return time_to_model(flight, methods=methods, iterations=iterations, pem_steps=pem_steps, numpy_rate=rate)
 
 
 def _experiment(flight: FlightData, trials: int, iterations: int, baselines: dict[int, float]) -> dict:

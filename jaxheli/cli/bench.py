@@ -32,6 +32,10 @@ def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                    "else a synthetic 8590-sample flight)")
     p.add_argument("--host-devices", type=int, default=None,
                    help="split the CPU into this many XLA devices (default: the CPU's cores)")
+    p.add_argument("--model-methods", nargs="*", default=["pem", "iwo+polish"],
+                   help="methods timed from flight A to a model, compilation included (none: skip)")
+    p.add_argument("--model-iterations", type=int, default=1000, help="generations of the timed population methods")
+    p.add_argument("--pem-steps", type=int, default=200, help="Levenberg-Marquardt steps of the timed PEM")
     p.add_argument("--quick", action="store_true", help="tiny settings (a smoke test, seconds)")
     p.add_argument("--out", default="results/bench", help="directory for bench.json, bench.md, throughput.png")
     p.set_defaults(func=_cmd_bench)
@@ -75,7 +79,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             setattr(args, key, value)
     result = measure(sizes=args.sizes, samples=args.samples, dtypes=args.dtypes, repeats=args.repeats,
                      generations=args.generations, experiment_iterations=args.experiment_iterations,
-                     trials=args.trials, experiment_data=args.experiment_data, quick=args.quick,
+                     trials=args.trials, experiment_data=args.experiment_data, model_methods=args.model_methods,
+                     model_iterations=args.model_iterations, pem_steps=args.pem_steps, quick=args.quick,
                      settings={k: v for k, v in vars(args).items() if k != "func"})
     paths = write_bench(result, args.out)
     print(markdown(result))

@@ -1,11 +1,13 @@
-"""Fit candidate effects, batched: one vmapped optimistix Levenberg-Marquardt solve over all candidates.
+"""Fit candidate effects, batched: one vmapped Levenberg-Marquardt solve over all candidates (the engines' solver,
+:func:`jaxheli.optim.pem.least_squares_solver`).
 
 Every candidate frees ``K`` entries of ``eta`` (``index[C, K]``, padded with a dummy slot), each in its
 physical box (:func:`jaxheli.effects.registry.box`), started at the effect's start values. With the base
 model frozen, the base ``theta`` stays as given; re-identified jointly (``theta_box`` given), the 40 base
 parameters are freed too, in their box, so an effect is fitted *with* the base model the user would
 re-identify, not on top of a base that already absorbed part of it. Both boxes go through the engines'
-transform (:class:`jaxheli.bounds.Bounds`: unit coordinates, the clipped point simulated, a penalty outside).
+transform (:class:`jaxheli.bounds.Bounds`: unit coordinates, the clipped point simulated, a penalty outside,
+iterates within the solver's margin of the box).
 
 The residuals are the predictor's normalised output errors on the training flight (their sum of squares
 is ``N`` times the summed per-channel gap), so the fit minimises the training gap directly. Standard
@@ -20,7 +22,6 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import lineax as lx
 import numpy as np
 import optimistix as optx
 
@@ -28,6 +29,7 @@ from .._types import Array, Float, Int
 from ..bounds import Bounds
 from ..cost import nmse
 from ..model import N_PARAMS
+from ..optim.pem import least_squares_solver
 from .predictor import Predictor
 
 
@@ -81,7 +83,6 @@ def fit_candidates(
 ) -> Fit:
     """Fit every candidate on ``pred``'s flight (vmapped LM; ``max_steps`` is static); with ``theta_box`` the
     base parameters are re-identified jointly in that box (it must contain ``theta``), else held at ``theta``."""
-    solver = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-8, linear_solver=lx.QR())
     joint = theta_box is not None
 
     def one(idx, z0, lo, hi):
@@ -101,6 +102,7 @@ def fit_candidates(
             return jnp.concatenate([fit_res(u), Bounds.penalty(u)])
 
         u0 = box.to_unit(p0)
+        solver = least_squares_solver("lm", 1e-6, 1e-8, u0.shape[0])
         sol = optx.least_squares(residuals, solver, u0, max_steps=max_steps, throw=False)
         r0, r1 = residuals(u0, None), residuals(sol.value, None)
         better = jnp.all(jnp.isfinite(sol.value)) & (jnp.sum(r1**2) <= jnp.sum(r0**2))
