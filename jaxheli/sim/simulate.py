@@ -14,7 +14,7 @@ after the first is copied from the measurement.
 from __future__ import annotations
 
 import dataclasses
-from typing import Literal
+from typing import Any, Literal
 
 import equinox as eqx
 import jax
@@ -201,33 +201,25 @@ class Simulator(eqx.Module):
 
 
 def make_simulator(
-    flight: FlightData,
-    *,
-    outputs: tuple[str, ...] | list[str] | None = None,
-    g: float = G_SI,
-    hold: Hold = "zoh",
-    x0: InitialState | Float[np.ndarray, "13"] = "zero",
-    segment: float | None = None,
-    reset: Reset = "carry",
-    method: Method = "auto",
-    block: int | None = None,
+    flight: FlightData, *, outputs: tuple[str, ...] | list[str] | None = None, **settings: Any
 ) -> Simulator:
     """Prepare a jittable simulator of ``flight``.
 
     Args:
         flight: the record whose sticks drive the model and whose outputs seed restarts.
         outputs: channels to return (default: every output the flight has, in its order).
-        g: gravity in the parameters' unit system, m/s^2.
-        hold: ``"zoh"`` (default) or ``"foh"`` (MATLAB ``lsim`` on smooth inputs).
-        x0: ``"zero"`` (the paper), ``"measured"`` (measured states at the first sample, the rest zero),
-            or an explicit 13-vector.
-        segment: restart interval in seconds (multiple shooting); ``None`` for one long run.
-        reset: at a restart, unmeasured states are ``"carry"``-ed over or set to ``"zero"``.
-        method: ``"scan"`` (one step per sample), ``"blocked"`` (blocks of ``block`` samples: block-Toeplitz
-            products and a scan over block starts, see :mod:`jaxheli.sim.blocked`; equal up to rounding) or
-            ``"auto"``: blocked whenever a block length fits the segment length, else scan.
-        block: block length in samples for the blocked method (default: chosen by
-            :func:`jaxheli.sim.blocked.choose_block`); must divide the segment length.
+        settings: the keywords of :meth:`Simulator.configure` (defaults there):
+            g: gravity in the parameters' unit system, m/s^2.
+            hold: ``"zoh"`` (default) or ``"foh"`` (MATLAB ``lsim`` on smooth inputs).
+            x0: ``"zero"`` (the paper), ``"measured"`` (measured states at the first sample, the rest zero),
+                or an explicit 13-vector.
+            segment: restart interval in seconds (multiple shooting); ``None`` for one long run.
+            reset: at a restart, unmeasured states are ``"carry"``-ed over or set to ``"zero"``.
+            method: ``"scan"`` (one step per sample), ``"blocked"`` (blocks of ``block`` samples: block-Toeplitz
+                products and a scan over block starts, see :mod:`jaxheli.sim.blocked`; equal up to rounding) or
+                ``"auto"``: blocked whenever a block length fits the segment length, else scan.
+            block: block length in samples for the blocked method (default: chosen by
+                :func:`jaxheli.sim.blocked.choose_block`); must divide the segment length.
     """
     names = tuple(flight.output_names if outputs is None else outputs)
     missing = [c for c in names if c not in flight.output_names]
@@ -242,11 +234,10 @@ def make_simulator(
     mask[state_cols[real]] = True
     raw = Simulator(
         inputs=jnp.asarray(flight.inputs), measured_states=jnp.asarray(measured), x0=None, dt=flight.dt,
-        outputs=names, measured_mask=tuple(bool(b) for b in mask), g=float(g), hold=hold, initial="zero",
-        segment_samples=0, reset=reset,
+        outputs=names, measured_mask=tuple(bool(b) for b in mask), g=G_SI, hold="zoh", initial="zero",
+        segment_samples=0, reset="carry",
     )
-    return raw.configure(outputs=names, g=g, hold=hold, x0=x0, segment=segment, reset=reset, method=method,
-                         block=block)
+    return raw.configure(outputs=names, **settings)
 
 
 @eqx.filter_jit
