@@ -5,12 +5,15 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 
-from ._types import Float
-from .cost import metrics
+from ._types import Array, Float
+from ._xla import QUICK_COMPILE
+from .cost import metrics, search_cost
 from .data.flight import FlightData
-from .model import G_SI, N_PARAMS, PARAM_NAMES, TABLE2, params_array
+from .model import G_SI, N_PARAMS, N_STATES, PARAM_NAMES, TABLE2, params_array
 from .problem import Problem, Records, as_problem, make_problem, parts
 from .sim.initial_state import estimate_x0
 from .sim.simulate import Simulator
@@ -75,7 +78,7 @@ def evaluate(
     problem = as_problem(data, outputs=outputs, **options)
     records = parts(problem)
     sims = [started_simulator(part, theta, x0) for part in records]
-    y = np.concatenate([np.asarray(sim(theta)) for sim in sims])
+    y = np.concatenate([np.asarray(_outputs(sim, jnp.asarray(theta))) for sim in sims])
     out = metrics(y, np.concatenate([np.asarray(part.target) for part in records]), problem.outputs)
     settings = sims[0].describe()
     settings["initial_state"] = x0 if isinstance(x0, str) else "given"
@@ -84,11 +87,28 @@ def evaluate(
     return out
 
 
+def search_cost_of(params: Float[np.ndarray, "40"], problem: Problem | Records) -> float:
+    """``problem``'s search cost (:func:`jaxheli.cost.search_cost` of its settings) of one parameter vector,
+    simulated from rest in the session's precision (the program :func:`evaluate` compiles for ``x0="zero"``);
+    summed over records."""
+    theta = jnp.asarray(params)
+    return sum(float(search_cost(part.settings.cost, _outputs(started_simulator(part, theta, "zero"), theta),
+                                 part.target)) for part in parts(problem))
+
+
+@eqx.filter_jit(compiler_options=QUICK_COMPILE)
+def _outputs(sim: Simulator, theta: Float[Array, "40"]) -> Float[Array, "N k"]:
+    """``sim(theta)`` as one program compiled for a single run."""
+    return sim(theta)
+
+
 def started_simulator(problem: Problem, theta: Float[np.ndarray, "40"], x0: str | np.ndarray) -> Simulator:
     """``problem``'s simulator started from ``x0``: ``"estimate"`` (least squares for ``theta``,
     :func:`~jaxheli.sim.initial_state.estimate_x0`), ``"zero"``, ``"measured"`` or a 13-vector."""
     if isinstance(x0, str) and x0 == "estimate":
         return problem.sim.replace_x0(estimate_x0(theta, problem))
+    if isinstance(x0, str) and x0 == "zero":  # as a given state: the estimated start's compiled program serves it
+        return problem.sim.replace_x0(np.zeros(N_STATES))
     if isinstance(x0, str):
         return problem.variant(x0=x0).sim
     return problem.sim.replace_x0(np.asarray(x0))

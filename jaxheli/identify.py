@@ -23,7 +23,7 @@ import scipy.stats
 from ._types import Float
 from .cost import SearchCost
 from .data.flight import FlightData, constant_outputs, default_outputs
-from .evaluate import evaluate
+from .evaluate import evaluate, search_cost_of
 from .model import G_SI, LOWER, PARAM_NAMES, UPPER
 from .optim.frequency_fit import FrequencyFitResult, cifer_report, frequency_fit
 from .optim.ga import GA
@@ -278,7 +278,7 @@ def _polish_trials(
     polished = [polish(th, search, objective=objective, max_steps=steps, rounds=rounds) for th in trial_params]
     costs = np.array([p.cost if objective == "pearson" else p.rss / search.n_samples for p in polished])
     before, after = int(np.argmin(trial_costs)), int(np.argmin(costs))
-    search_costs = np.asarray(search.population_cost()(np.stack([trial_params[before], polished[after].theta])))
+    search_costs = [search_cost_of(theta, search) for theta in (trial_params[before], polished[after].theta)]
     info = {
         "objective": objective,
         "params_before": dict(zip(PARAM_NAMES, map(float, trial_params[before]))),

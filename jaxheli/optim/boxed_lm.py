@@ -7,7 +7,7 @@ trust-region acceptance and Cauchy termination) with one descent, :class:`BoxedD
 
 1. at each accepted point it materialises the Jacobian ``J`` (forward mode: one batched tangent per unknown, no
    transpose), ``J^T J``, the gradient ``g = J^T r`` and the axes held by the gradient: bounded axes at a bound
-   whose gradient points out of the box. They take no step;
+   whose gradient points out of the box, and unknowns no residual depends on (a zero column). They take no step;
 2. each trial step minimises the damped Gauss-Newton model ``|r + J d|^2 + lambda |d|^2`` on the other axes
    (``lambda = 1 / step_size``, as :class:`optimistix.LevenbergMarquardt`; Gauss-Newton: ``lambda = 0`` and a
    pseudo-inverse), then moves the axes that ``d`` carries out of the box to their bound, holds them there and
@@ -70,7 +70,7 @@ class BoxedDampedNewton(optx.AbstractDescent):
         grad = jac.T @ f_info.residual
         bounded = jnp.arange(y.shape[0]) < self.n_bounded
         lo, hi = -self.margin, 1.0 + self.margin
-        free = ~(bounded & (((y <= lo) & (grad > 0.0)) | ((y >= hi) & (grad < 0.0))))
+        free = ~(bounded & (((y <= lo) & (grad > 0.0)) | ((y >= hi) & (grad < 0.0)))) & jnp.any(jac != 0.0, axis=0)
         return _DescentState(y, free, jac.T @ jac, grad)
 
     def _solve(

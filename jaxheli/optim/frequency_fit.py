@@ -35,6 +35,7 @@ import optimistix as optx
 from jaxtyping import Complex
 
 from .._types import Array, ArrayLike, Bool, Float
+from .._xla import QUICK_COMPILE
 from ..bounds import Bounds, Free
 from ..data.flight import FlightData
 from ..model import INPUT_NAMES, PARAM_NAMES
@@ -179,7 +180,7 @@ def _screen(boxed: _Boxed, v: Float[Array, "S n"]) -> Float[Array, " S"]:
     return jax.lax.map(lambda x: _average_j(boxed.targets, boxed.theta(x)), v, batch_size=250)
 
 
-@eqx.filter_jit
+@eqx.filter_jit(compiler_options=QUICK_COMPILE)
 def _solve(
     boxed: _Boxed, v0: Float[Array, "K n"], solver: optx.AbstractLeastSquaresSolver, max_steps: int
 ) -> tuple[Array, Array, Array, Array, Array]:

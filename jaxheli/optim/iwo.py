@@ -109,6 +109,12 @@ class IWO(AbstractPopulationOptimizer):
         left = jnp.clip((self.iterations - jnp.asarray(generation)) / self.iterations, 0.0, 1.0)
         return left**self.modulation * (self.sigma_initial - self.sigma_final) + self.sigma_final
 
+    @property
+    def score_batch(self) -> int:
+        """Seeds scored per cost call: ``max_population`` (of the ``max_population * max_seeds`` buffer, only
+        the batches holding real seeds are scored, :func:`~jaxheli.optim._base.score`)."""
+        return self.max_population
+
     def init_ask(self, key: RawKey) -> Candidates:
         unit = self.uniform(jax.random.split(key)[0], self.initial_population)
         return Candidates(unit, self.to_theta(unit), jnp.ones(self.initial_population, bool))
@@ -163,13 +169,19 @@ class IWO(AbstractPopulationOptimizer):
         )
 
 
+_COUNT_SLACK = 1e-9
+"""Added to the seed count before ``floor`` (see :func:`_seed_counts`)."""
+
+
 def _seed_counts(
     costs: Float[Array, "n"], alive: Bool[Array, "n"], min_seeds: int, max_seeds: int
 ) -> Int[Array, "n"]:
     """Seeds per plant, ``floor(min + (max - min) (worst - cost) / (worst - best))`` over finite costs.
 
     The best plant gets ``max_seeds``, the worst ``min_seeds`` (all ``max_seeds`` when every finite cost
-    is equal); plants with a non-finite cost get ``min_seeds``, dead slots 0.
+    is equal); plants with a non-finite cost get ``min_seeds``, dead slots 0. A count within
+    :data:`_COUNT_SLACK` of the next integer is rounded up, so the last digit of a cost cannot change it (beside a
+    diverging plant's huge cost every other plant's share is ``max_seeds - O(1e-16)``).
     """
     finite = alive & jnp.isfinite(costs)
     best = jnp.min(jnp.where(finite, costs, jnp.inf))
@@ -177,5 +189,5 @@ def _seed_counts(
     spread = worst - best
     ratio = jnp.where(spread > 0, (worst - costs) / jnp.where(spread > 0, spread, 1.0), 1.0)
     ratio = jnp.where(finite, jnp.clip(ratio, 0.0, 1.0), 0.0)
-    counts = jnp.floor(min_seeds + (max_seeds - min_seeds) * ratio).astype(int)
+    counts = jnp.floor(min_seeds + (max_seeds - min_seeds) * ratio + _COUNT_SLACK).astype(int)
     return jnp.where(alive, counts, 0)

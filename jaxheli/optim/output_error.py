@@ -24,11 +24,14 @@ steps do not), where one round of 100 steps stalls in a valley of the rotor para
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Any
 
+import jax
 import numpy as np
 
-from .._types import ArrayLike, Float
+from .._types import Array, ArrayLike, Float
+from .._xla import QUICK_COMPILE
 from ..bounds import Free
 from ..model import build_ab
 from ..problem import Problem, Records, parts
@@ -51,7 +54,7 @@ def restart_interval(
     """Restart interval, s, for ``theta`` on a ``duration``-s record: ``None`` (one run) when the fastest
     unstable mode grows at most ``growth`` times over the record, else the longest of :data:`SEGMENTS` over
     which it does (the shortest when none does, or when ``theta`` is not finite)."""
-    A = np.asarray(build_ab(np.asarray(theta, dtype=np.float64), g)[0])
+    A = np.asarray(_state_matrix(np.asarray(theta, dtype=np.float64), g))
     if not np.all(np.isfinite(A)):
         return SEGMENTS[0]
     rate = float(np.max(np.linalg.eigvals(A).real))
@@ -60,6 +63,12 @@ def restart_interval(
         return None
     fitting = [s for s in SEGMENTS if s <= horizon]
     return fitting[-1] if fitting else SEGMENTS[0]
+
+
+@functools.partial(jax.jit, compiler_options=QUICK_COMPILE)
+def _state_matrix(theta: Float[Array, "40"], g: float) -> Float[Array, "13 13"]:
+    """The hover model's ``A`` (one small program, instead of ``build_ab``'s op-by-op dispatch)."""
+    return build_ab(theta, g)[0]
 
 
 def output_error_problem(
@@ -104,9 +113,8 @@ def output_error(
     for k in range(rounds):
         last = k == rounds - 1
         chosen = output_error_problem(problem, theta, FINAL_GROWTH if last else GROWTH)
-        res = fit(chosen, theta, "pem", solver, max_steps, free, rtol, atol, fit_x0=last)
-        x0 = res.x0 if last else np.stack([np.asarray(p.sim.x0) for p in parts(chosen)])
-        history.append({"segment_s": [p.settings.segment for p in parts(chosen)], "x0": x0.tolist(),
+        res = fit(chosen, theta, "pem", solver, max_steps, free, rtol, atol, fit_x0=last, with_x0=True)
+        history.append({"segment_s": [p.settings.segment for p in parts(chosen)], "x0": res.x0.tolist(),
                         "x0_fitted": last, "rss_start": res.rss_start, "rss": res.rss, "n_steps": res.n_steps,
                         "result": res.result})
         results.append(res)

@@ -33,7 +33,8 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from .._types import Array, ArrayLike, Float
+from .._types import Array, ArrayLike, Bool, Float
+from .._xla import QUICK_COMPILE
 from ..bounds import Bounds, Free
 from ..cost import paper_cost, pearson
 from ..data.flight import FlightData
@@ -99,14 +100,17 @@ Objective = Literal["pem", "pearson"]
 
 class _Boxed(eqx.Module):
     """An objective's residuals as a function of ``v``: the unit coordinates of the free axes (kept within
-    :data:`MARGIN` of ``[0, 1]`` by the solver, a penalty past the box appended), then (``fit_x0``) each record's
-    13-vector initial state, physical units."""
+    :data:`MARGIN` of ``[0, 1]`` by the solver, a penalty past the box appended), then (``with_x0``) each record's
+    13-vector initial state, physical units, which drives the simulators when ``fit_x0`` (a traced flag: the
+    output-error rounds that hold the initial state and the last round that fits it share one compiled solve;
+    held, those axes have zero Jacobian columns and take no step)."""
 
     problem: Problem | Records
     base: Float[Array, "40"]
     free: tuple[bool, ...] = eqx.field(static=True)
     objective: Objective = eqx.field(static=True)
-    fit_x0: bool = eqx.field(static=True, default=False)
+    with_x0: bool = eqx.field(static=True, default=False)
+    fit_x0: Bool[Array, ""] = eqx.field(default=False, converter=jnp.asarray)
 
     @property
     def n_free(self) -> int:
@@ -117,9 +121,9 @@ class _Boxed(eqx.Module):
         return self.problem.bounds.embed(self.base, np.array(self.free), v[: self.n_free])
 
     def v0(self) -> Float[Array, " n"]:
-        """The start: ``base`` (clipped into the box) and (``fit_x0``) each record's initial state."""
+        """The start: ``base`` (clipped into the box) and (``with_x0``) each record's initial state."""
         u = Bounds.clip_unit(self.problem.bounds.to_unit(self.base)[np.flatnonzero(np.array(self.free))])
-        if not self.fit_x0:
+        if not self.with_x0:
             return u
         x0 = [part.sim.initial_states(1, u.dtype)[:, 0] for part in parts(self.problem)]
         return jnp.concatenate([u] + x0)
@@ -127,10 +131,11 @@ class _Boxed(eqx.Module):
     def simulators(self, v: Float[Array, " n"]) -> list[Simulator]:
         """Each record's simulator, started from its initial state in ``v`` when ``fit_x0``."""
         records = parts(self.problem)
-        if not self.fit_x0:
+        if not self.with_x0:
             return [part.sim for part in records]
         x0 = v[self.n_free:].reshape(len(records), N_STATES)
-        return [part.sim.replace_x0(x) for part, x in zip(records, x0)]
+        return [part.sim.replace_x0(jnp.where(self.fit_x0, x, part.sim.initial_states(1, x.dtype)[:, 0]))
+                for part, x in zip(records, x0)]
 
     def of_outputs(self, part: Problem, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch m"]:
         """The objective's residuals of one record's outputs."""
@@ -154,7 +159,7 @@ def _scores(theta: Array, v: Array, boxed: _Boxed) -> tuple[Array, Array, Array]
     return loss, cost, rss
 
 
-@eqx.filter_jit
+@eqx.filter_jit(compiler_options=QUICK_COMPILE)
 def _solve(
     boxed: _Boxed, solver: optx.AbstractLeastSquaresSolver, max_steps: int
 ) -> tuple[Array, Array, Array, Array, Array, Array, Array, optx.RESULTS]:
@@ -171,7 +176,7 @@ def _solve(
     better = jnp.all(jnp.isfinite(pair[1])) & (loss[1] <= loss[0])
     pick = jnp.where(better, 1, 0)
     x0 = jnp.zeros((0, N_STATES), pair.dtype)
-    if boxed.fit_x0:
+    if boxed.with_x0:
         x0 = jnp.stack([jnp.where(better, s1.x0, s0.x0)
                         for s0, s1 in zip(boxed.simulators(v0), boxed.simulators(v1))])
     return pair[pick], x0, cost[0], cost[pick], rss[0], rss[pick], sol.stats["num_steps"], sol.result
@@ -310,13 +315,15 @@ def fit(
     rtol: float,
     atol: float,
     fit_x0: bool = False,
+    with_x0: bool = False,
 ) -> PEMResult:
     """Least squares on ``objective``'s residuals over the free parameters, in ``problem``'s box (shared by
     :func:`pem` and :func:`~jaxheli.optim.polish.polish`); over several records the residuals are concatenated,
     so the sums of squares (and the paper's costs reported) add. ``fit_x0`` fits each record's initial state
-    too, from the one its simulator starts from."""
+    too, from the one its simulator starts from; ``with_x0`` compiles the solve with those unknowns whether or not
+    they are fitted (so fits with and without them share one program), and returns the initial states."""
     base, mask = start_vector(start, problem.bounds), problem.bounds.free_mask(free)
-    boxed = _Boxed(problem, jnp.asarray(base), tuple(bool(m) for m in mask), objective, fit_x0)
+    boxed = _Boxed(problem, jnp.asarray(base), tuple(bool(m) for m in mask), objective, with_x0 or fit_x0, fit_x0)
     raw = _solve(boxed, least_squares_solver(solver, rtol, atol, boxed.n_free), int(max_steps))
     settings = {"objective": objective, "solver": solver, "max_steps": int(max_steps), "rtol": rtol, "atol": atol,
                 "fit_x0": fit_x0,

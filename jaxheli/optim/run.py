@@ -4,8 +4,8 @@ A run is ``init`` then ``step`` repeated; :func:`minimize` scans ``chunk`` gener
 (compiled once per chunk length) and only returns to Python between chunks, to write the checkpoint; the
 progress bar moves every generation (a host callback from inside the scan). :func:`minimize_trials` runs K
 independent trials in the same scan: ask and tell are vmapped over the trial axis, and the K candidate
-batches are flattened into one ``cost_fn(thetas[K * B, dim])`` call, so a batched simulator sees one large
-population per generation.
+batches are flattened into one batch per generation, whose real candidates are scored ``score_batch`` at a time
+(:func:`~jaxheli.optim._base.score`; IWO's padding slots are never scored).
 
 ``cost_fn`` is closed over by the jitted chunk: pass a pure JAX function of ``thetas`` (an
 ``eqx.Partial`` or ``eqx.Module`` keeps large arrays such as flight records traced instead of baked
@@ -38,7 +38,8 @@ import numpy as np
 from tqdm import tqdm
 
 from .._types import Array, ArrayLike, Float, Int
-from ._base import AbstractPopulationOptimizer, CostFn, raw_key
+from .._xla import QUICK_COMPILE
+from ._base import AbstractPopulationOptimizer, Candidates, CostFn, raw_key, score
 
 _FORMAT = "jaxheli-optim-checkpoint-2"
 _BARS: list[tqdm] = []
@@ -106,7 +107,7 @@ def minimize_trials(
     """K independent trials, one per key of ``keys[K]``, in one vmapped scan (arguments of :func:`minimize`).
 
     Trial ``k`` equals ``minimize(optimizer, cost_fn, keys[k])`` bitwise; every generation scores all
-    trials' candidates in one ``cost_fn(thetas[K * B, dim])`` call. Results carry a leading trial axis
+    trials' real candidates together (:func:`~jaxheli.optim._base.score`). Results carry a leading trial axis
     (``history[K, iterations]``); the paper's 10 trials for 95 % intervals are ``keys = split(key, 10)``.
     """
     return _drive(optimizer, cost_fn, keys, True, iterations, chunk, progress, checkpoint, resume)
@@ -132,7 +133,7 @@ def _drive(
     settings = _settings(optimizer, key)
     path = None if checkpoint is None else Path(checkpoint)
     if resume and path is not None and path.exists():
-        state, history = _load(path, settings, eqx.filter_eval_shape(_init, optimizer, cost_fn, key, trials))
+        state, history = _load(path, settings, eqx.filter_eval_shape(_initial_state, optimizer, cost_fn, key, trials))
     else:
         state = _init(optimizer, cost_fn, key, trials)
         history = jnp.zeros((0,) + state.best_cost.shape, state.best_cost.dtype)
@@ -160,24 +161,29 @@ def _drive(
     )
 
 
-def _flat_cost(cost_fn: CostFn, thetas: Float[Array, "K B dim"]) -> Float[Array, "K B"]:
-    k, b, d = thetas.shape
-    return jnp.reshape(cost_fn(thetas.reshape(k * b, d)), (k, b))
+def _flat_cost(optimizer: AbstractPopulationOptimizer, cost_fn: CostFn, candidates: Candidates) -> Float[Array, "K B"]:
+    """The ``[K, B]`` candidates of K trials scored as one flat batch (:func:`~jaxheli.optim._base.score`)."""
+    k, b = candidates.real.shape
+    flat = jax.tree.map(lambda a: a.reshape((k * b,) + a.shape[2:]), candidates)
+    return jnp.reshape(score(cost_fn, flat, optimizer.score_batch), (k, b))
 
 
-@eqx.filter_jit
-def _init(optimizer: AbstractPopulationOptimizer, cost_fn: CostFn, key: Array, trials: bool) -> Any:
+def _initial_state(optimizer: AbstractPopulationOptimizer, cost_fn: CostFn, key: Array, trials: bool) -> Any:
     if not trials:
         return optimizer.init(key, cost_fn)
     candidates = jax.vmap(optimizer.init_ask)(key)
-    return jax.vmap(optimizer.init_tell)(key, candidates, _flat_cost(cost_fn, candidates.theta))
+    return jax.vmap(optimizer.init_tell)(key, candidates, _flat_cost(optimizer, cost_fn, candidates))
+
+
+_init = eqx.filter_jit(_initial_state, compiler_options=QUICK_COMPILE)
+"""The initial state, compiled on its own for its one call (the generations' scan keeps XLA's defaults)."""
 
 
 def _step(optimizer: AbstractPopulationOptimizer, cost_fn: CostFn, state: Any, trials: bool) -> Any:
     if not trials:
         return optimizer.step(state, cost_fn)
     candidates = jax.vmap(optimizer.ask)(state)
-    return jax.vmap(optimizer.tell)(state, candidates, _flat_cost(cost_fn, candidates.theta))
+    return jax.vmap(optimizer.tell)(state, candidates, _flat_cost(optimizer, cost_fn, candidates))
 
 
 def _tick() -> None:

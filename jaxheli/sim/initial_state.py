@@ -10,11 +10,13 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, Float
+from .._xla import QUICK_COMPILE
 from ..data.flight import FlightData
 from ..model import N_STATES
 from .simulate import Simulator, make_simulator
@@ -46,6 +48,7 @@ def open_loop(sim: Simulator) -> Simulator:
     return sim.configure(outputs=sim.outputs, g=sim.g, hold=sim.hold)
 
 
+@eqx.filter_jit(compiler_options=QUICK_COMPILE)
 def _fit_x0(theta: Array, sim: Simulator, target: Array, horizon: float | None) -> Array:
     if horizon is not None:
         n = max(2, min(sim.inputs.shape[0], int(round(horizon / sim.dt)) + 1))
