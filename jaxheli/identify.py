@@ -188,7 +188,7 @@ def identify(
     settings = problem.settings
     t0 = time.perf_counter()
     key = jax.random.PRNGKey(seed)
-    history = np.zeros((trials, 0))
+    history, evaluations = np.zeros((trials, 0)), None
     polish_info = fits = None
     if method == "pem":
         fitted = problem.variant(segment=pem_segment, x0="measured")
@@ -202,7 +202,7 @@ def identify(
             trial_params, trial_costs = np.stack([f.theta for f in fits]), np.array([f.j_average for f in fits])
         else:
             run_options = {"chunk": chunk, "progress": progress, "checkpoint": checkpoint, "resume": resume}
-            trial_params, trial_costs, history = _population_trials(
+            trial_params, trial_costs, history, evaluations = _population_trials(
                 search, GA if method == "ga" else IWO, iterations, engine_options, key, trials, run_options)
         fitted = scored = search
         if method.endswith("+polish"):
@@ -222,7 +222,7 @@ def identify(
         "polish_steps": polish_steps, "polish_rounds": polish_rounds, "train_source": str(problem.source),
         "validate_source": None if validate is None else validate.source,
         "x64": bool(jax.config.jax_enable_x64), "search_precision": settings.precision,
-        "engine_options": dict(engine_options or {}),
+        "engine_options": dict(engine_options or {}), "evaluations": evaluations,
         "standard_errors": [part.sim.describe() for part in parts(fitted)],
     }
     truth = _known_truth(data) if truth is None else np.asarray(truth, dtype=np.float64)
@@ -256,9 +256,9 @@ def scores(params: Float[np.ndarray, "40"], problem: Problem | Records) -> dict[
 def _population_trials(
     search: Problem | Records, engine_type: type, iterations: int, engine_options: dict[str, Any] | None, key,
     trials: int, run_options: dict[str, Any],
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """``trials`` runs of IWO or GA (vmapped when several) on ``search``'s population cost: each trial's best
-    parameters ``[K, 40]``, cost ``[K]`` and best cost per generation ``[K, iterations]``."""
+    parameters ``[K, 40]``, cost ``[K]``, best cost per generation ``[K, iterations]``, and the candidates scored."""
     bounds = search.bounds
     engine = engine_type(lower=bounds.lower, upper=bounds.upper, iterations=iterations, **(engine_options or {}))
     keys = jax.random.split(key, trials)
@@ -266,7 +266,7 @@ def _population_trials(
     run = (minimize_trials(engine, cost_fn, keys, **run_options) if trials > 1
            else minimize(engine, cost_fn, keys[0], **run_options))
     return (np.asarray(run.best_theta).reshape(trials, -1), np.asarray(run.best_cost).reshape(trials),
-            np.asarray(run.history).reshape(trials, -1))
+            np.asarray(run.history).reshape(trials, -1), int(np.sum(np.asarray(run.n_evaluations))))
 
 
 def _polish_trials(

@@ -38,7 +38,7 @@ def test_quick_bench_writes_json_markdown_and_plot(tmp_path):
         assert row["blocked"] > 0 and row["scan"] > 0 and row["numpy"] > 0 and row["flop_limit"] > row["blocked"]
     experiment = result["experiment"]
     assert experiment["trials"] == 2 and experiment["iterations"] == 3 and len(experiment["best_cost"]) == 2
-    assert experiment["seeds"] <= experiment["evaluations"]
+    assert experiment["trials"] * 20 < experiment["evaluations"] < experiment["buffer_slots"]  # padding not scored
     pem_row, iwo_row = result["time_to_model"]
     assert pem_row["method"] == "pem" and pem_row["steps"] <= 3 and pem_row["rss"] <= pem_row["rss_start"]
     assert iwo_row["method"] == "iwo+polish" and iwo_row["samples"] == 300 and iwo_row["numpy_ratio"] > 0

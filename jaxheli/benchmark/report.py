@@ -23,7 +23,7 @@ def markdown(result: dict) -> str:
     if result.get("mealpy"):
         lines += ["", "mealpy OriginalIWO on the NumPy cost, N = {N}: {rate:.1f} evaluations/s".format(**result["mealpy"])]
     if result.get("iwo_generation"):
-        lines += ["", "## Seconds per IWO generation (280 candidates)", "", "| dtype | N | method | s/generation |",
+        lines += ["", "## Seconds per IWO generation (the real seeds of a 280-slot buffer)", "", "| dtype | N | method | s/generation |",
                   "|---|---|---|---|"]
         lines += [f"| {g['dtype']} | {g['N']} | {g['method']} | {g['seconds']:.4f} |" for g in result["iwo_generation"]]
     if result.get("experiment"):

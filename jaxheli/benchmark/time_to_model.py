@@ -9,10 +9,7 @@ from ..data.flight import FlightData
 from ..identify import identify
 from ..io import load
 from ..io.paths import data_file
-from ..model import LOWER, UPPER
-from ..optim.iwo import IWO
 from ..optim.pem import pem
-from .experiment import iwo_evaluations
 
 PAPER_PREPARATION = {"trim_samples": 50, "correct_data": True, "lowpass_hz": 3.0}
 """How ``benchmarks/paper_comparison.py`` prepares flight A for training (:func:`jaxheli.gap.prepare.prepare`)."""
@@ -41,7 +38,8 @@ def time_to_model(
 
     Each row: method, seconds, the model's training fit % and Pearson per channel (``identify``'s methods) or its
     sum of squares and steps (PEM), and, for the population engines, the seconds the per-candidate NumPy loop at
-    ``numpy_rate`` (candidates/s) would spend on the same candidates and its ratio to the measured time.
+    ``numpy_rate`` (candidates/s) would spend on the same candidates (those the run scored) and its ratio to the
+    measured time.
     """
     rows = []
     for method in methods:
@@ -55,7 +53,7 @@ def time_to_model(
             row = {"method": method, "seconds": time.perf_counter() - start,
                    "fit_percent": result.train["fit_percent"], "pearson": result.train["pearson"]}
             if numpy_rate and method.startswith("iwo"):
-                row["numpy_seconds"] = iwo_evaluations(IWO(LOWER, UPPER, iterations=iterations)) / numpy_rate
+                row["numpy_seconds"] = result.settings["evaluations"] / numpy_rate
                 row["numpy_ratio"] = row["numpy_seconds"] / row["seconds"]
         row["samples"] = flight.n_samples
         rows.append(row)
