@@ -8,7 +8,7 @@ from jaxheli.bounds import Bounds
 from jaxheli.identify import scores
 from jaxheli.model import TABLE2, build_ab, params_array
 from jaxheli.optim.output_error import GROWTH, SEGMENTS, output_error_problem, restart_interval
-from jaxheli.optim.pem import residuals
+from jaxheli.optim.pem import fit, residuals
 from jaxheli.optim.polish import polish
 from jaxheli.optim.uncertainty import cramer_rao_coverage, standard_errors
 from jaxheli.problem import make_problem
@@ -80,3 +80,18 @@ def test_cramer_rao_coverage_counts_identifiable_parameters_within_k_errors():
     cov = cramer_rao_coverage(Unc(), truth)
     assert cov["identifiable"] == ["Xu", "Xa"] and cov["within"] == ["Xu"] and cov["fraction"] == 0.5
     np.testing.assert_allclose([cov["z"]["Xu"], cov["z"]["Xa"]], [-2.5, -3.5])
+
+
+def test_rounds_holding_the_initial_state_share_the_fitting_rounds_program(flight):
+    """A round that holds the initial state runs in the program compiled with the initial-state unknowns (a traced
+    flag, zero Jacobian columns, no step on them), and finds what the fit without those unknowns finds, to 1e-6."""
+    rng = np.random.default_rng(1)
+    start = np.where(Bounds().free_mask(), TABLE2 * (1 + rng.uniform(-0.1, 0.1, 40)), TABLE2)
+    chosen = output_error_problem(make_problem(flight), start)
+    plain = fit(chosen, start, "pem", "lm", 8, None, 1e-8, 1e-8)
+    shared = fit(chosen, start, "pem", "lm", 8, None, 1e-8, 1e-8, with_x0=True)
+    assert plain.x0 is None and plain.rss < plain.rss_start
+    np.testing.assert_allclose(shared.theta, plain.theta, rtol=1e-6)
+    np.testing.assert_allclose(shared.rss, plain.rss, rtol=1e-6)
+    np.testing.assert_array_equal(shared.x0[0], np.asarray(chosen.sim.x0))  # held where it was estimated
+    assert shared.n_steps == plain.n_steps
