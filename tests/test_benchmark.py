@@ -41,6 +41,7 @@ def test_quick_bench_writes_json_markdown_and_plot(tmp_path):
     assert experiment["trials"] * 20 < experiment["evaluations"] < experiment["buffer_slots"]  # padding not scored
     pem_row, iwo_row = result["time_to_model"]
     assert pem_row["method"] == "pem" and pem_row["steps"] <= 3 and pem_row["rss"] <= pem_row["rss_start"]
+    assert pem_row["numpy_simulations"] == pem_row["steps"] * 36  # 35 free parameters + 1
     assert iwo_row["method"] == "iwo+polish" and iwo_row["samples"] == 300 and iwo_row["numpy_ratio"] > 0
     assert set(iwo_row["fit_percent"]) >= {"p", "q", "phi", "theta"} and all(r["seconds"] > 0 for r in (pem_row, iwo_row))
     text = (tmp_path / "bench.md").read_text()

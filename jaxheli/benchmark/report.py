@@ -43,6 +43,9 @@ def markdown(result: dict) -> str:
                              if c in r.get("fit_percent", {})) or f"RSS {r['rss']:.4g} ({r['steps']} steps)"
             numpy = f"{r['numpy_seconds']:.0f} | {r['numpy_ratio']:.0f}x" if "numpy_seconds" in r else "- | -"
             lines.append(f"| {r['method']} | {r['samples']} | {r['seconds']:.1f} | {numpy} | {fit} |")
+        if any("numpy_simulations" in r for r in result["time_to_model"]):
+            lines += ["", "PEM's NumPy loop: a forward-difference Jacobian per step, steps x (free parameters + 1) "
+                          "simulations at the loop's measured rate (an estimate, not a run)."]
     if result.get("scaling"):
         lines += ["", "## Sharding over local devices", "", "| dtype | N | P | 1 device /s | "
                   f"{result['devices']} devices /s | speed-up | efficiency |", "|---|---|---|---|---|---|---|"]

@@ -37,9 +37,10 @@ def time_to_model(
     default polish, standard errors and scores included: what a user waits for).
 
     Each row: method, seconds, the model's training fit % and Pearson per channel (``identify``'s methods) or its
-    sum of squares and steps (PEM), and, for the population engines, the seconds the per-candidate NumPy loop at
-    ``numpy_rate`` (candidates/s) would spend on the same candidates (those the run scored) and its ratio to the
-    measured time.
+    sum of squares and steps (PEM), and the seconds the per-candidate NumPy loop at ``numpy_rate`` (simulations/s)
+    would spend and their ratio to the measured time: for the population engines on the candidates the run scored;
+    for PEM on a forward-difference Jacobian per step, ``steps x (free parameters + 1)`` simulations (an estimate
+    from the measured rate, not a run).
     """
     rows = []
     for method in methods:
@@ -48,6 +49,10 @@ def time_to_model(
             fit = pem(flight, max_steps=pem_steps)
             row = {"method": method, "seconds": time.perf_counter() - start, "steps": fit.n_steps,
                    "rss_start": fit.rss_start, "rss": fit.rss, "result": fit.result}
+            if numpy_rate:
+                row["numpy_simulations"] = fit.n_steps * (len(fit.free) + 1)
+                row["numpy_seconds"] = row["numpy_simulations"] / numpy_rate
+                row["numpy_ratio"] = row["numpy_seconds"] / row["seconds"]
         else:
             result = identify(flight, method=method, iterations=iterations, trials=1, seed=seed, progress=False)
             row = {"method": method, "seconds": time.perf_counter() - start,
