@@ -25,7 +25,10 @@ REQUIRE_DATA = os.environ.get("JAXHELI_REQUIRE_DATA", "") not in ("", "0")
 
 
 MAX_MAPPINGS = 30_000
-"""Memory mappings past which a worker drops its compiled programs (Linux's default limit: 65,530)."""
+"""Memory mappings past which a worker drops its compiled programs after a test file (Linux's default limit:
+65,530)."""
+URGENT_MAPPINGS = 45_000
+"""Memory mappings past which a worker drops its compiled programs after any test."""
 
 
 def _mappings() -> int:
@@ -49,8 +52,21 @@ def _release_compiled_programs():
     """
     yield
     if _mappings() > MAX_MAPPINGS:
-        jax.clear_caches()
-        gc.collect()
+        _release()
+
+
+@pytest.fixture(autouse=True)
+def _release_before_the_limit():
+    """Within a test file, drop every compiled program after a test once the process holds
+    :data:`URGENT_MAPPINGS` (a file that compiles many programs must not reach the limit before it ends)."""
+    yield
+    if _mappings() > URGENT_MAPPINGS:
+        _release()
+
+
+def _release() -> None:
+    jax.clear_caches()
+    gc.collect()
 
 
 @pytest.fixture(scope="session")

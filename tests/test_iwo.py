@@ -191,12 +191,13 @@ def test_scoring_real_seeds_only_matches_the_whole_buffer():
     clean = np.asarray(simulate(TABLE2, flight))
     cost = eqx.Partial(_heli_cost, make_simulator(flight), jnp.asarray(clean))
     compact, whole = IWO(LOWER, UPPER, iterations=30), _WholeBuffer(LOWER, UPPER, iterations=30)
-    assert compact.score_batch == 40 and whole.score_batch is None
+    assert compact.score_batch == 40 * jax.local_device_count() and whole.score_batch is None
 
     state = minimize(compact, cost, jax.random.key(3), iterations=5, progress=False).state
     seeds = compact.ask(state)
     assert 0 < int(jnp.sum(seeds.real)) < 280  # padding present: batches without real seeds are skipped
     np.testing.assert_allclose(score(cost, seeds, 40), score(cost, seeds, None), rtol=1e-6)
+    np.testing.assert_allclose(score(cost, seeds, 80), score(cost, seeds, None), rtol=1e-6)
     assert np.all(np.isinf(np.asarray(score(cost, seeds, 40))[~np.asarray(seeds.real)]))
 
     for run in (lambda opt: minimize(opt, cost, jax.random.key(3), progress=False),

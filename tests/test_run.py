@@ -49,8 +49,8 @@ def test_killed_run_resumes_bitwise(tmp_path, monkeypatch):
     reference = minimize(IWO50, traced_bowl, jax.random.key(5), chunk=20, progress=False)
     assert reference.history.shape == (50,)
     # one trace for init, one per chunk length (20, then the last 10): the chunks are jitted once; the seeds are
-    # scored max_population (40) at a time
-    assert TRACED == [(20, 4), (40, 4), (40, 4)]
+    # scored score_batch (max_population per device) at a time
+    assert TRACED == [(20, 4), (IWO50.score_batch, 4), (IWO50.score_batch, 4)]
 
     path = tmp_path / "iwo.eqx"
     save, chunk = run._save, run._chunk
@@ -79,7 +79,7 @@ def test_killed_run_resumes_bitwise(tmp_path, monkeypatch):
     _assert_same(resumed, reference)
     assert json.loads((tmp_path / "iwo.eqx.json").read_text())["iteration"] == 50
     # resuming traces the initial state once more for its shapes (eval_shape, nothing compiled)
-    assert TRACED == [(20, 4), (40, 4), (40, 4), (20, 4)]
+    assert TRACED == [(20, 4), (IWO50.score_batch, 4), (IWO50.score_batch, 4), (20, 4)]
 
 
 def test_checkpoint_refuses_other_settings(tmp_path):
@@ -153,7 +153,7 @@ def test_trials_equal_single_runs(opt):
     keys = jax.random.split(jax.random.key(11), 3)
     trials = minimize_trials(opt, cost, keys, chunk=25, progress=False)
     # IWO scores the three trials' real seeds together, max_population at a time; GA its whole flat buffer
-    assert shapes[-1] == ((opt.max_population, 4) if isinstance(opt, IWO) else (3 * (opt.population - opt.elite), 4))
+    assert shapes[-1] == ((opt.score_batch, 4) if isinstance(opt, IWO) else (3 * (opt.population - opt.elite), 4))
     assert trials.history.shape == (3, 50) and trials.best_theta.shape == (3, 4)
     for k in range(3):
         single = minimize(opt, traced_bowl, keys[k], chunk=25, progress=False)
