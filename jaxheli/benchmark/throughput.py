@@ -55,7 +55,7 @@ def evaluation_rate(
 
 def generation_seconds(sim: Simulator, target: jax.Array, generations: int, repeats: int = 2) -> float:
     """Seconds per generation of the paper's IWO (20 -> 40 plants, 2 to 7 seeds each in a 280-slot buffer; only
-    the real seeds are scored, 40 at a time)."""
+    the real seeds are scored, ``IWO.score_batch`` at a time)."""
     cost = PopulationCost(sim, target, target.dtype.name)
     opt = IWO(LOWER, UPPER)
     run = lambda: minimize(opt, cost, jax.random.key(0), iterations=generations, chunk=generations,  # noqa: E731
