@@ -24,6 +24,15 @@ from jaxheli.io.paths import data_dir  # noqa: E402
 REQUIRE_DATA = os.environ.get("JAXHELI_REQUIRE_DATA", "") not in ("", "0")
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_configure(config: pytest.Config) -> None:
+    """Under xdist, a crashed worker ends the run naming its test (unless ``--max-worker-restart`` is given):
+    replacing it can hang ``--dist loadfile`` forever (pytest-xdist issue 784), which once stalled a run here after
+    "node down: Not properly terminated". Set here rather than in ``addopts``, so ``-p no:xdist`` still works."""
+    if getattr(config.option, "maxworkerrestart", "") is None:
+        config.option.maxworkerrestart = "0"
+
+
 MAX_MAPPINGS = 30_000
 """Memory mappings past which a worker drops its compiled programs after a test file (Linux's default limit:
 65,530)."""
