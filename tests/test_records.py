@@ -12,6 +12,7 @@ from jaxheli.model import TABLE2
 from jaxheli.optim.output_error import output_error_problem
 from jaxheli.optim.polish import polish
 from jaxheli.problem import Records, make_problem, make_records, parts
+from jaxheli.sim.shooting import run_states
 from jaxheli.sim.simulate import simulate
 from jaxheli.synth.excitation import Excitation
 from jaxheli.synth.piloted import piloted_flight
@@ -60,7 +61,7 @@ def test_each_record_gets_its_own_initial_state(flights):
     second = first.replace(outputs=np.asarray(first.outputs) + offset)
     chosen = output_error_problem(make_records([first, second]), TABLE2)
     assert isinstance(chosen, Records) and len(parts(chosen)) == 2
-    x0 = [np.asarray(p.sim.x0) for p in parts(chosen)]
+    x0 = [np.asarray(run_states(p.sim, TABLE2))[0] for p in parts(chosen)]
     assert abs(x0[0][1]) < 0.05 and abs(x0[1][1] - 0.4) < 0.05
 
 

@@ -83,3 +83,26 @@ def test_diverging_residuals_raise_or_leave_every_free_parameter_unresolved():
     unc = from_residuals(diverging, TABLE2, nonfinite="unresolved")
     free = ~np.isin(PARAM_NAMES, PINNED)
     assert np.all(np.isinf(unc.stderr[free])) and np.all(unc.stderr[~free] == 0) and not unc.resolved.any()
+
+
+def test_a_nuisance_parameter_eliminated_by_projection_gives_the_full_fits_errors():
+    """Variable projection: an intercept projected out of the residuals (``nuisance=1``) leaves the slopes' standard
+    errors of the ordinary least-squares fit that estimates the intercept with them."""
+    _, theta, _, X = _regression()
+    rng = np.random.default_rng(1)
+    y = X @ np.array([-0.3, 150.0]) + 4.0 + 0.1 * rng.standard_normal(X.shape[0])
+    idx = [PARAM_NAMES.index(p) for p in USED]
+
+    def projected(theta):
+        e = jnp.asarray(X) @ theta[jnp.asarray(idx)] - jnp.asarray(y)
+        return e - jnp.mean(e)
+
+    full = np.column_stack([X, np.ones(X.shape[0])])
+    beta, *_ = np.linalg.lstsq(full, y, rcond=None)
+    resid = full @ beta - y
+    ols = np.sqrt(np.diag(resid @ resid / (X.shape[0] - 3) * np.linalg.inv(full.T @ full)))[:2]
+    theta = theta.copy()
+    theta[idx] = beta[:2]
+    unc = from_residuals(projected, theta, free=USED, nuisance=1)
+    np.testing.assert_allclose(unc.stderr[idx], ols, rtol=1e-8)
+    assert unc.dof == X.shape[0] - 3

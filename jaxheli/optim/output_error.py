@@ -1,24 +1,20 @@
-"""Output-error fit: least squares on normalised output errors, initial state estimated, restarts only where the
-model is unstable.
+"""Output-error fit: least squares on normalised output errors, every run started from its least-squares state.
 
 The paper's Pearson cost is blind to gain and offset, so a model fitted on it alone can have the flight's shapes
 at a third of its amplitude. This fit minimises ``sum_i sum_t ((y_i - m_i) / std(m_i))^2``, PEM's normalised
 residuals (:func:`jaxheli.optim.pem.fit` with ``objective="pem"``), i.e. ``N`` times the sum over channels of
-:func:`jaxheli.cost.nmse`, in rounds; each chooses its simulation at the current parameters, then solves:
+:func:`jaxheli.cost.nmse`, where the simulation starts every run from the state that best explains its outputs
+(``x0="estimated"``, :mod:`jaxheli.sim.shooting`: the initial states are eliminated by variable projection, so
+neither a guessed start nor the sensors' noise in a measured restart enters the errors). That is the
+maximum-likelihood output error for white measurement noise, also for an open-loop-unstable model:
 
-- restarts: one open-loop run over each record when the model is stable or its fastest unstable mode grows at
-  most ``growth`` times over the record; otherwise a restart from the measured states every ``segment`` s, the
-  longest of :data:`SEGMENTS` over which that mode grows at most ``growth`` times (an unstable candidate still
-  gives bounded residuals, and a restart keeps the slow unstable mode from dominating a poor model's errors);
-- initial state: the least-squares estimate (:func:`jaxheli.sim.initial_state.estimate_x0`) over the first
-  run, each record's own.
-
-The rounds before the last restart where the mode grows more than :data:`GROWTH` times and hold the initial
-state (far from the optimum a free initial state lets the fit wander). The last round is the
-maximum-likelihood output error for measurement noise: one run per record unless the mode grows more than
-:data:`FINAL_GROWTH` times over it, the initial states fitted with the parameters. On the default flight (80 s,
-Table 2 truth) three rounds of 30 steps from a 100-generation IWO reach the truth's fit % on every channel (20
-steps do not), where one round of 100 steps stalls in a valley of the rotor parameters. Every distinct segment length compiles the solver once.
+- runs: one over each record when the model is stable or its fastest unstable mode grows at most :data:`GROWTH`
+  times over the record; otherwise a restart every ``segment`` s, the longest of :data:`SEGMENTS` over which it
+  does (an unstable candidate still gives bounded errors). Mettler's R-50 doubles its phugoid in 2.3 s: over
+  80 s from one estimated state the truth's own errors are 10^7 times the noise, over 5 s runs they are the noise;
+- rounds: each round chooses the runs at the current parameters and solves. The first rounds cap the runs at the
+  lengths of :data:`LADDER` (short runs first: a poor start's errors cannot build up over a long open-loop run);
+  the fit ends when an uncapped round converges, or after ``rounds`` rounds.
 """
 
 from __future__ import annotations
@@ -35,17 +31,18 @@ from .._xla import QUICK_COMPILE
 from ..bounds import Free
 from ..model import build_ab
 from ..problem import Problem, Records, parts
-from ..sim.initial_state import estimate_x0
 from .pem import PEMResult, Solver, fit
 
-GROWTH = 10.0
-"""Largest growth of the fastest unstable mode over one simulated run in the rounds before the last."""
-
-FINAL_GROWTH = 1e3
-"""Largest growth of the fastest unstable mode over one simulated run in the last round."""
+GROWTH = 1e3
+"""Largest growth of the fastest unstable mode over one simulated run of the rounds after the ladder."""
 
 SEGMENTS: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0, 20.0, 40.0)
 """Restart intervals, s, an unstable model is simulated with (few values: each compiles the solver once)."""
+
+LADDER: tuple[float, ...] = (5.0, 20.0)
+"""Caps, s, on the run length of the first rounds. From a 100-generation IWO start on the 80 s Table 2 training
+flight of ``benchmarks/identification.py``, runs over the whole record stall at 4.5 times the truth's sum of
+squares (20,695 against 4,618); 5 s, then 20 s, then whole-record runs reach it (4,616)."""
 
 
 def restart_interval(
@@ -72,37 +69,45 @@ def _state_matrix(theta: Float[Array, "40"], g: float) -> Float[Array, "13 13"]:
 
 
 def output_error_problem(
-    problem: Problem | Records, theta: Float[ArrayLike, "40"], growth: float = FINAL_GROWTH
+    problem: Problem | Records, theta: Float[ArrayLike, "40"], growth: float = GROWTH
 ) -> Problem | Records:
     """``problem`` as the output-error fit simulates it at ``theta``: restarts from :func:`restart_interval`
-    (``growth``; default: the last round's), the initial state estimated over the first run (each record's own,
-    for :class:`~jaxheli.problem.Records`)."""
+    (``growth``), every run from its least-squares initial state (each record's own, for
+    :class:`~jaxheli.problem.Records`)."""
     theta = np.asarray(theta, dtype=np.float64)
     if isinstance(problem, Records):
         return Records(tuple(output_error_problem(part, theta, growth) for part in problem.parts))
-    segment = restart_interval(theta, problem.settings.g, problem.n_samples * problem.dt, growth)
-    chosen = problem.variant(segment=segment, x0="zero")
-    return chosen.start_from(estimate_x0(theta, chosen, horizon=segment))
+    return _runs(problem, restart_interval(theta, problem.settings.g, problem.n_samples * problem.dt, growth))
+
+
+def _runs(problem: Problem | Records, segment: float | None) -> Problem | Records:
+    """``problem`` simulated in runs of ``segment`` s (one run where the record is not longer), each from its
+    least-squares initial state."""
+    if isinstance(problem, Records):
+        return Records(tuple(_runs(part, segment) for part in problem.parts))
+    if segment is not None and segment >= (problem.n_samples - 1) * problem.dt:
+        segment = None
+    return problem.variant(segment=segment, x0="estimated", simulator="scan")
 
 
 def output_error(
     problem: Problem | Records,
     start: Float[ArrayLike, "40"],
     *,
-    rounds: int = 3,
+    rounds: int = 4,
     solver: Solver = "lm",
-    max_steps: int = 30,
+    max_steps: int = 100,
     free: Free = None,
     rtol: float = 1e-8,
     atol: float = 1e-8,
 ) -> PEMResult:
-    """Fit ``problem``'s record by output error from ``start[40]`` in ``rounds`` rounds (see the module).
+    """Fit ``problem``'s record by output error from ``start[40]`` in at most ``rounds`` rounds (see the module).
 
-    ``problem``'s scored channels, hold, g and box apply (its restarts and initial state are replaced; each
+    ``problem``'s scored channels, hold, g and box apply (its restarts and initial states are replaced; each
     record of a :class:`~jaxheli.problem.Records` gets its own); ``solver``, ``max_steps`` (per round), ``free``,
     ``rtol``, ``atol`` as in :func:`jaxheli.optim.pem.pem`. The result's ``rss_start`` / ``cost_start`` are those
-    of the first round's simulation, ``rss`` / ``cost`` / ``x0`` those of the last; ``settings["rounds"]`` lists
-    each round's restart intervals, initial states and sums of squares. Never worse than the start on any
+    of the first round's simulation, ``rss`` / ``cost`` those of the last; ``settings["rounds"]`` lists each
+    round's restart intervals, sums of squares, steps and solver result. Never worse than the start on any
     round's objective.
     """
     if rounds < 1:
@@ -111,14 +116,15 @@ def output_error(
     results: list[PEMResult] = []
     history: list[dict[str, Any]] = []
     for k in range(rounds):
-        last = k == rounds - 1
-        chosen = output_error_problem(problem, theta, FINAL_GROWTH if last else GROWTH)
-        res = fit(chosen, theta, "pem", solver, max_steps, free, rtol, atol, fit_x0=last, with_x0=True)
-        history.append({"segment_s": [p.settings.segment for p in parts(chosen)], "x0": res.x0.tolist(),
-                        "x0_fitted": last, "rss_start": res.rss_start, "rss": res.rss, "n_steps": res.n_steps,
-                        "result": res.result})
+        ladder = k < len(LADDER) and k < rounds - 1
+        chosen = _runs(problem, LADDER[k]) if ladder else output_error_problem(problem, theta)
+        res = fit(chosen, theta, "pem", solver, max_steps, free, rtol, atol)
+        history.append({"segment_s": [p.settings.segment for p in parts(chosen)], "ladder": ladder,
+                        "rss_start": res.rss_start, "rss": res.rss, "n_steps": res.n_steps, "result": res.result})
         results.append(res)
         theta = res.theta
+        if res.success and not ladder:
+            break
     first, final = results[0], results[-1]
     settings = {**final.settings, "objective": "output-error", "rounds": history}
     return dataclasses.replace(final, theta_start=first.theta_start, cost_start=first.cost_start,

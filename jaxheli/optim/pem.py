@@ -33,14 +33,13 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from .._types import Array, ArrayLike, Bool, Float
+from .._types import Array, ArrayLike, Float
 from .._xla import QUICK_COMPILE
 from ..bounds import Bounds, Free
 from ..cost import paper_cost, pearson
 from ..data.flight import FlightData
-from ..model import N_PARAMS, N_STATES, PARAM_NAMES
+from ..model import N_PARAMS, PARAM_NAMES
 from ..problem import Problem, Records, as_problem, parts
-from ..sim.simulate import Simulator
 from .boxed_lm import BoxedLeastSquares, Solver
 
 _BIG = 1e3
@@ -99,18 +98,13 @@ Objective = Literal["pem", "pearson"]
 
 
 class _Boxed(eqx.Module):
-    """An objective's residuals as a function of ``v``: the unit coordinates of the free axes (kept within
-    :data:`MARGIN` of ``[0, 1]`` by the solver, a penalty past the box appended), then (``with_x0``) each record's
-    13-vector initial state, physical units, which drives the simulators when ``fit_x0`` (a traced flag: the
-    output-error rounds that hold the initial state and the last round that fits it share one compiled solve;
-    held, those axes have zero Jacobian columns and take no step)."""
+    """An objective's residuals as a function of ``v``, the unit coordinates of the free axes (kept within
+    :data:`MARGIN` of ``[0, 1]`` by the solver; a penalty past the box is appended)."""
 
     problem: Problem | Records
     base: Float[Array, "40"]
     free: tuple[bool, ...] = eqx.field(static=True)
     objective: Objective = eqx.field(static=True)
-    with_x0: bool = eqx.field(static=True, default=False)
-    fit_x0: Bool[Array, ""] = eqx.field(default=False, converter=jnp.asarray)
 
     @property
     def n_free(self) -> int:
@@ -118,24 +112,11 @@ class _Boxed(eqx.Module):
 
     def theta(self, v: Float[Array, " n"]) -> Float[Array, "40"]:
         """Physical parameters: the free axes from ``v`` (unclipped), the others from ``base``."""
-        return self.problem.bounds.embed(self.base, np.array(self.free), v[: self.n_free])
+        return self.problem.bounds.embed(self.base, np.array(self.free), v)
 
     def v0(self) -> Float[Array, " n"]:
-        """The start: ``base`` (clipped into the box) and (``with_x0``) each record's initial state."""
-        u = Bounds.clip_unit(self.problem.bounds.to_unit(self.base)[np.flatnonzero(np.array(self.free))])
-        if not self.with_x0:
-            return u
-        x0 = [part.sim.initial_states(1, u.dtype)[:, 0] for part in parts(self.problem)]
-        return jnp.concatenate([u] + x0)
-
-    def simulators(self, v: Float[Array, " n"]) -> list[Simulator]:
-        """Each record's simulator, started from its initial state in ``v`` when ``fit_x0``."""
-        records = parts(self.problem)
-        if not self.with_x0:
-            return [part.sim for part in records]
-        x0 = v[self.n_free:].reshape(len(records), N_STATES)
-        return [part.sim.replace_x0(jnp.where(self.fit_x0, x, part.sim.initial_states(1, x.dtype)[:, 0]))
-                for part, x in zip(records, x0)]
+        """The start: ``base``, clipped into the box."""
+        return Bounds.clip_unit(self.problem.bounds.to_unit(self.base)[np.flatnonzero(np.array(self.free))])
 
     def of_outputs(self, part: Problem, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch m"]:
         """The objective's residuals of one record's outputs."""
@@ -144,15 +125,15 @@ class _Boxed(eqx.Module):
 
 def _residual(v: Array, boxed: _Boxed) -> Array:
     theta = boxed.theta(v)
-    fits = [boxed.of_outputs(part, sim(theta)) for part, sim in zip(parts(boxed.problem), boxed.simulators(v))]
-    return jnp.concatenate(fits + [Bounds.penalty(v[: boxed.n_free])])
+    fits = [boxed.of_outputs(part, part.sim(theta)) for part in parts(boxed.problem)]
+    return jnp.concatenate(fits + [Bounds.penalty(v)])
 
 
-def _scores(theta: Array, v: Array, boxed: _Boxed) -> tuple[Array, Array, Array]:
+def _scores(theta: Array, boxed: _Boxed) -> tuple[Array, Array, Array]:
     """The objective's sum of squares, the paper's cost and the PEM sum of squares, added over records."""
     loss = cost = rss = jnp.zeros((), theta.dtype)
-    for part, sim in zip(parts(boxed.problem), boxed.simulators(v)):
-        y = sim(theta)
+    for part in parts(boxed.problem):
+        y = part.sim(theta)
         loss = loss + jnp.sum(boxed.of_outputs(part, y) ** 2)
         cost = cost + paper_cost(y, part.target)
         rss = rss + jnp.sum(pem_residuals(part, y) ** 2)
@@ -162,24 +143,17 @@ def _scores(theta: Array, v: Array, boxed: _Boxed) -> tuple[Array, Array, Array]
 @eqx.filter_jit(compiler_options=QUICK_COMPILE)
 def _solve(
     boxed: _Boxed, solver: optx.AbstractLeastSquaresSolver, max_steps: int
-) -> tuple[Array, Array, Array, Array, Array, Array, Array, optx.RESULTS]:
+) -> tuple[Array, Array, Array, Array, Array, Array, optx.RESULTS]:
     """One least-squares solve of ``boxed``'s residuals; keeps the start (``base``) unless the solver beat it.
 
-    Returns ``theta, x0 [R, 13], cost_start, cost, rss_start, rss, n_steps, result``. Start and answer are
-    simulated together in one vmapped run (one copy of the simulator in the compiled program).
+    Returns ``theta, cost_start, cost, rss_start, rss, n_steps, result``. Start and answer are simulated together
+    in one vmapped run (one copy of the simulator in the compiled program).
     """
-    v0 = boxed.v0()
-    sol = optx.least_squares(_residual, solver, v0, args=boxed, max_steps=max_steps, throw=False)
-    v1 = sol.value.at[: boxed.n_free].set(Bounds.clip_unit(sol.value[: boxed.n_free]))
-    pair, vs = jnp.stack([boxed.base, boxed.theta(v1)]), jnp.stack([v0, v1])
-    loss, cost, rss = jax.vmap(_scores, in_axes=(0, 0, None))(pair, vs, boxed)
-    better = jnp.all(jnp.isfinite(pair[1])) & (loss[1] <= loss[0])
-    pick = jnp.where(better, 1, 0)
-    x0 = jnp.zeros((0, N_STATES), pair.dtype)
-    if boxed.with_x0:
-        x0 = jnp.stack([jnp.where(better, s1.x0, s0.x0)
-                        for s0, s1 in zip(boxed.simulators(v0), boxed.simulators(v1))])
-    return pair[pick], x0, cost[0], cost[pick], rss[0], rss[pick], sol.stats["num_steps"], sol.result
+    sol = optx.least_squares(_residual, solver, boxed.v0(), args=boxed, max_steps=max_steps, throw=False)
+    pair = jnp.stack([boxed.base, boxed.theta(Bounds.clip_unit(sol.value))])
+    loss, cost, rss = jax.vmap(_scores, in_axes=(0, None))(pair, boxed)
+    pick = jnp.where(jnp.all(jnp.isfinite(pair[1])) & (loss[1] <= loss[0]), 1, 0)
+    return pair[pick], cost[0], cost[pick], rss[0], rss[pick], sol.stats["num_steps"], sol.result
 
 
 MARGIN = 0.2
@@ -223,7 +197,6 @@ class PEMResult:
         result: optimistix result name (``"successful"``, ``"max_steps_reached"``, ...); ``message`` its text.
         success: the solver converged (its termination test passed within ``max_steps``).
         settings: simulator and solver settings.
-        x0: ``[R, 13]`` each record's fitted initial state (``None`` unless it was fitted).
     """
 
     theta: np.ndarray
@@ -238,7 +211,6 @@ class PEMResult:
     message: str
     success: bool
     settings: dict[str, Any]
-    x0: np.ndarray | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready values; parameter vectors as ``{name: value}``."""
@@ -246,13 +218,12 @@ class PEMResult:
         out["theta"] = dict(zip(PARAM_NAMES, self.theta.tolist()))
         out["theta_start"] = dict(zip(PARAM_NAMES, self.theta_start.tolist()))
         out["free"] = list(self.free)
-        out["x0"] = None if self.x0 is None else self.x0.tolist()
         return out
 
 
 def _result(raw, base: np.ndarray, mask: np.ndarray, settings: dict[str, Any]) -> PEMResult:
     *values, result = raw
-    theta, x0, c0, c1, r0, r1, steps = (np.asarray(v) for v in values)
+    theta, c0, c1, r0, r1, steps = (np.asarray(v) for v in values)
     name = _result_name(result)
     return PEMResult(
         theta=theta,
@@ -267,7 +238,6 @@ def _result(raw, base: np.ndarray, mask: np.ndarray, settings: dict[str, Any]) -
         message=optx.RESULTS[result],
         success=name == "successful",
         settings=settings,
-        x0=x0 if x0.size else None,
     )
 
 
@@ -314,19 +284,14 @@ def fit(
     free: Free,
     rtol: float,
     atol: float,
-    fit_x0: bool = False,
-    with_x0: bool = False,
 ) -> PEMResult:
     """Least squares on ``objective``'s residuals over the free parameters, in ``problem``'s box (shared by
     :func:`pem` and :func:`~jaxheli.optim.polish.polish`); over several records the residuals are concatenated,
-    so the sums of squares (and the paper's costs reported) add. ``fit_x0`` fits each record's initial state
-    too, from the one its simulator starts from; ``with_x0`` compiles the solve with those unknowns whether or not
-    they are fitted (so fits with and without them share one program), and returns the initial states."""
+    so the sums of squares (and the paper's costs reported) add."""
     base, mask = start_vector(start, problem.bounds), problem.bounds.free_mask(free)
-    boxed = _Boxed(problem, jnp.asarray(base), tuple(bool(m) for m in mask), objective, with_x0 or fit_x0, fit_x0)
+    boxed = _Boxed(problem, jnp.asarray(base), tuple(bool(m) for m in mask), objective)
     raw = _solve(boxed, least_squares_solver(solver, rtol, atol, boxed.n_free), int(max_steps))
     settings = {"objective": objective, "solver": solver, "max_steps": int(max_steps), "rtol": rtol, "atol": atol,
-                "fit_x0": fit_x0,
                 "simulator": [part.sim.describe() for part in parts(problem)] if isinstance(problem, Records)
                 else problem.sim.describe()}
     return _result(raw, base, mask, settings)

@@ -33,7 +33,7 @@ def polish(
     objective: PolishObjective = "output-error",
     solver: Solver = "lm",
     max_steps: int = 100,
-    rounds: int = 3,
+    rounds: int = 4,
     free: Free = None,
     rtol: float = 1e-8,
     atol: float = 1e-8,

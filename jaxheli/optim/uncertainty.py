@@ -1,7 +1,9 @@
 """Cramer-Rao-style standard errors at an optimum, and which parameters a flight can identify.
 
 Linearised least squares: with ``J`` the Jacobian of the residual vector over the free parameters
-(physical units, :func:`jax.jacfwd`) and ``s^2 = RSS / (N_res - rank J)``, ``cov = s^2 (J^T J)^+``
+(physical units, :func:`jax.jacfwd`) and ``s^2 = RSS / (N_res - rank J - n_nuisance)``, ``cov = s^2 (J^T J)^+``
+(``n_nuisance``: unknowns eliminated inside the residuals, e.g. 13 per run whose initial state is estimated by
+variable projection, :mod:`jaxheli.sim.shooting`; the Jacobian of the projected residuals marginalises them)
 (``rank J = n_free`` when every free parameter is resolved; an unresolved direction costs no degree of
 freedom, so a model with unused parameters gives exactly the ordinary least-squares errors). The
 pseudo-inverse works on the column-normalised Jacobian (each column divided by its norm, so the cutoff
@@ -29,8 +31,9 @@ from .._types import Array, ArrayLike, Bool, Float
 from .._xla import QUICK_COMPILE
 from ..bounds import Bounds, Free
 from ..data.flight import FlightData
-from ..model import N_PARAMS, PARAM_NAMES
-from ..problem import Problem, Records
+from ..model import N_PARAMS, N_STATES, PARAM_NAMES
+from ..problem import Problem, Records, parts
+from ..sim.shooting import run_count
 from .pem import PEM_DEFAULTS, fitted_problem, residuals
 
 
@@ -103,6 +106,7 @@ def from_residuals(
     null_tol: float = 1e-6,
     bounds: Bounds | None = None,
     nonfinite: Literal["raise", "unresolved"] = "raise",
+    nuisance: int = 0,
 ) -> Uncertainty:
     """Standard errors of ``theta`` for a residual function ``fn(theta[40]) -> r[m]`` (jit-traceable).
 
@@ -111,6 +115,7 @@ def from_residuals(
     relative singular-value cutoff of the pseudo-inverse, ``null_tol`` the weight in a dropped direction
     that marks a parameter unresolved. Residuals or Jacobian not finite at ``theta`` (a model that diverges)
     raise, or with ``nonfinite="unresolved"`` leave every free parameter unresolved (standard error inf).
+    ``nuisance`` unknowns eliminated inside ``fn`` cost degrees of freedom.
     """
     theta = np.asarray(theta, dtype=np.float64)
     if theta.shape != (N_PARAMS,):
@@ -124,13 +129,13 @@ def from_residuals(
         stderr = np.where(mask, np.inf, 0.0)
         return Uncertainty(theta, stderr, stderr, np.eye(N_PARAMS), mask, np.zeros(N_PARAMS, bool), np.zeros(0), 0,
                            float("nan"), 0)
-    if r.size <= idx.size:
+    if r.size <= idx.size + nuisance:
         raise ValueError(f"from_residuals: {r.size} residuals for {idx.size} free parameters; need more residuals")
     norms = np.linalg.norm(J, axis=0)
     norms = np.where(norms > 0, norms, 1.0)
     _, s, vt = np.linalg.svd(J / norms, full_matrices=False)
     keep = s > rcond * s[0] if s[0] > 0 else np.zeros_like(s, dtype=bool)
-    dof = r.size - int(keep.sum())
+    dof = r.size - int(keep.sum()) - nuisance
     sigma2 = float(r @ r / dof)
     null_weight = np.sum(vt[~keep] ** 2, axis=0)
     ok = null_weight <= null_tol
@@ -173,8 +178,10 @@ def standard_errors(
     """
     problem = fitted_problem(data, PEM_DEFAULTS, **settings)
     mask = problem.bounds.free_mask(free)
+    nuisance = sum(N_STATES * run_count(part.n_samples, part.sim.segment_samples) for part in parts(problem)
+                   if part.sim.initial == "estimated")
     return from_residuals(eqx.Partial(residuals, problem), theta, free=mask, rcond=rcond, null_tol=null_tol,
-                          bounds=problem.bounds, nonfinite=nonfinite)
+                          bounds=problem.bounds, nonfinite=nonfinite, nuisance=nuisance)
 
 
 def cramer_rao_coverage(

@@ -8,12 +8,14 @@ Hover models are open-loop unstable, so besides the paper's single long run (``s
 simulator offers multiple shooting: every ``segment`` seconds the measured states restart from the
 flight, the unmeasured ones are carried over from the previous segment (``reset="carry"``) or zeroed
 (``reset="zero"``). The output at a restart sample is the prediction before the restart, so no sample
-after the first is copied from the measurement.
+after the first is copied from the measurement. With ``x0="estimated"`` every run instead starts from the
+state that best fits its measured outputs (:mod:`jaxheli.sim.shooting`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Any, Literal
 
 import equinox as eqx
@@ -24,10 +26,11 @@ import numpy as np
 from .._types import Array, Float, Params
 from .blocked import Blocks, Plan, blocked_rollout, choose_block, make_plan, population_discrete, run_blocks
 from .discretize import Hold, discretize
+from .shooting import estimated_outputs
 from ..data.flight import FlightData
 from ..model import FLAPPING, G_SI, MEASURABLE, N_STATES, build_ab, output_indices
 
-InitialState = Literal["zero", "measured"]
+InitialState = Literal["zero", "measured", "estimated"]
 Reset = Literal["carry", "zero"]
 Method = Literal["auto", "scan", "blocked"]
 
@@ -56,7 +59,12 @@ class Simulator(eqx.Module):
         theta = jnp.asarray(theta)
         batch = theta.shape[:-1]
         flat = theta.reshape((-1, theta.shape[-1]))
-        y = _blocked_outputs(self, flat) if self.method == "blocked" else jax.vmap(self._one)(flat)
+        if self.initial == "estimated":
+            y = jax.vmap(functools.partial(estimated_outputs, self))(flat)
+        elif self.method == "blocked":
+            y = _blocked_outputs(self, flat)
+        else:
+            y = jax.vmap(self._one)(flat)
         return y.reshape(batch + y.shape[1:])
 
     def blocks(self, thetas: Float[Array, "P 40"]) -> Blocks:
@@ -90,6 +98,8 @@ class Simulator(eqx.Module):
 
     def states(self, theta: Float[Array, "40"]) -> Float[Array, "N 13"]:
         """All 13 simulated states for one parameter vector (for plots and diagnosis)."""
+        if self.initial == "estimated":
+            raise ValueError("Simulator.states: not available for estimated initial states; give an x0")
         return self._rollout(jnp.asarray(theta), jnp.arange(N_STATES))
 
     def _one(self, theta: Float[Array, "40"]) -> Float[Array, "N k"]:
@@ -143,8 +153,8 @@ class Simulator(eqx.Module):
         if reset not in ("carry", "zero"):
             raise ValueError(f"reset must be 'carry' or 'zero', got {reset!r}")
         if isinstance(x0, str):
-            if x0 not in ("zero", "measured"):
-                raise ValueError(f"x0 must be 'zero', 'measured' or a 13-vector, got {x0!r}")
+            if x0 not in ("zero", "measured", "estimated"):
+                raise ValueError(f"x0 must be 'zero', 'measured', 'estimated' or a 13-vector, got {x0!r}")
             x0_arr, initial = None, x0
         else:
             x0_arr = jnp.asarray(x0)
@@ -159,7 +169,9 @@ class Simulator(eqx.Module):
                 raise ValueError(f"segment must be at least one sample ({self.dt} s), got {segment} s")
         if method not in ("auto", "scan", "blocked"):
             raise ValueError(f"method must be 'auto', 'scan' or 'blocked', got {method!r}")
-        if method != "scan":
+        if method == "blocked" and initial == "estimated":
+            raise ValueError("method='blocked' cannot estimate initial states; use 'scan' or 'auto'")
+        if method != "scan" and initial != "estimated":
             L = choose_block(seg) if block is None else int(block)
             if L is None or (L < 1 or (seg > 0 and seg % L)):
                 if method == "blocked":
@@ -171,7 +183,7 @@ class Simulator(eqx.Module):
             else:
                 method = "blocked"
         else:
-            L = 0
+            method, L = "scan", 0
         return dataclasses.replace(
             self, x0=x0_arr, outputs=tuple(outputs), g=float(g), hold=hold, initial=initial, segment_samples=seg,
             reset=reset, method=method, block=L,
@@ -179,7 +191,10 @@ class Simulator(eqx.Module):
 
     def describe(self) -> dict[str, object]:
         """The settings in words and numbers, for result files."""
-        if self.segment_samples > 0:
+        if self.initial == "estimated":
+            runs = f"every {self.segment_samples * self.dt:.4g} s" if self.segment_samples > 0 else "once"
+            mode = f"multiple shooting: restart {runs} from the least-squares state (variable projection)"
+        elif self.segment_samples > 0:
             mode = (
                 f"multiple shooting: restart from measured states every {self.segment_samples * self.dt:.4g} s "
                 f"({self.segment_samples} samples), unmeasured states {'carried over' if self.reset == 'carry' else 'zeroed'}"
@@ -212,7 +227,8 @@ def make_simulator(
             g: gravity in the parameters' unit system, m/s^2.
             hold: ``"zoh"`` (default) or ``"foh"`` (MATLAB ``lsim`` on smooth inputs).
             x0: ``"zero"`` (the paper), ``"measured"`` (measured states at the first sample, the rest zero),
-                or an explicit 13-vector.
+                ``"estimated"`` (every run, the first and each restart, from its least-squares state:
+                :mod:`jaxheli.sim.shooting`) or an explicit 13-vector.
             segment: restart interval in seconds (multiple shooting); ``None`` for one long run.
             reset: at a restart, unmeasured states are ``"carry"``-ed over or set to ``"zero"``.
             method: ``"scan"`` (one step per sample), ``"blocked"`` (blocks of ``block`` samples: block-Toeplitz
