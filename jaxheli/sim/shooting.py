@@ -24,7 +24,7 @@ stick-multiple flapping columns) get no weight.
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -34,8 +34,8 @@ from .._types import Array, Float
 from ..model import build_ab, output_indices
 from .discretize import discretize
 
-if TYPE_CHECKING:
-    from .simulate import Simulator
+Simulator = Any
+"""A :class:`jaxheli.sim.simulate.Simulator` (which calls this module; not imported here, so no import cycle)."""
 
 RIDGE = 1e-10
 """Tikhonov term of each run's normal equations, relative to their mean diagonal: a state the run's outputs cannot
