@@ -160,11 +160,11 @@ def identify(
             fit's first start (default: its best screened draws only).
         cost: what IWO / GA minimise: ``"pearson"`` (the paper's Eq. 7) or ``"output-error"``
             (:func:`jaxheli.cost.output_error_cost`).
-        polish_objective: ``"output-error"`` (default: normalised output errors, initial state estimated,
-            restarts where the model is unstable, :mod:`jaxheli.optim.output_error`), ``"pearson"`` (the
+        polish_objective: ``"output-error"`` (default: normalised output errors, every run from its least-squares
+            state, runs shortened where the model is unstable, :mod:`jaxheli.optim.output_error`), ``"pearson"`` (the
             paper's cost: with ``cost="pearson"`` the paper's pure pipeline) or ``"pem"``
             (:func:`jaxheli.optim.polish.polish`).
-        polish_steps, polish_rounds: Levenberg-Marquardt steps per round, and rounds (output error only).
+        polish_steps, polish_rounds: Levenberg-Marquardt steps per round, and the most rounds (output error only).
         pem_segment: predictor restart interval of PEM, s (keeps unstable candidates usable).
         search_precision: arithmetic of the IWO / GA population scoring (float32, the default, is several
             times faster and its costs agree with float64 to 1e-3, see ``tests/test_blocked.py``); the polish,

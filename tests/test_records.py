@@ -1,6 +1,8 @@
 """Several records in one fit: costs add (checked against numpy), each record its own initial state, and the
 ``FILE[:t0-t1]`` windows of the command line."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -89,9 +91,12 @@ def test_identify_cli_fits_several_windows(flights, tmp_path):
     path = tmp_path / "f.npz"
     save_npz(flights[0], path)
     out = tmp_path / "run"
-    rc = main(["identify", "--method", "iwo", "--train", f"{path}:0-4", f"{path}:4-8", "--iterations", "2",
-               "--out", str(out)])
+    rc = main(["identify", "--method", "iwo+polish", "--train", f"{path}:0-4", f"{path}:4-8", "--iterations", "2",
+               "--polish-steps", "3", "--polish-rounds", "1", "--out", str(out)])
     assert rc == 0
+    content = json.loads((out / "result.json").read_text())
+    assert content["settings"]["polish_rounds"] == 1 and len(content["polish"]["rounds"]) == 1
+    assert content["polish"]["rounds"][0]["segment_s"] == [None, None]  # 4 s records: one run each
     for name in ("train_flight.npz", "train_flight_2.npz", "verification_train.png", "verification_train_2.png"):
         assert (out / name).is_file(), name
     assert load(out / "train_flight_2.npz").n_samples == trim(flights[0], 4.0, 8.0).n_samples

@@ -38,10 +38,12 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                    help="what IWO / GA minimise: pearson (default, the paper's Eq. 7) or output-error")
     p.add_argument("--polish-objective", choices=POLISH_OBJECTIVES, default="output-error",
                    help="what the polish of iwo+polish minimises: output-error (default: normalised output errors, "
-                        "initial state estimated, restarts where the model is unstable), pearson (with --cost "
-                        "pearson: the paper's pure pipeline) or pem")
-    p.add_argument("--polish-steps", type=int, default=30,
-                   help="Levenberg-Marquardt steps per polish round (default 30)")
+                        "every run from its least-squares state, runs shortened where the model is unstable), "
+                        "pearson (with --cost pearson: the paper's pure pipeline) or pem")
+    p.add_argument("--polish-steps", type=int, default=100,
+                   help="Levenberg-Marquardt steps per polish round (default 100)")
+    p.add_argument("--polish-rounds", type=int, default=4,
+                   help="output-error polish: at most this many rounds, the first on 5 s then 20 s runs (default 4)")
     p.add_argument("--freq-starts", type=int, default=8, metavar="K",
                    help="freq: Levenberg-Marquardt starts, the best of --freq-screen draws in the box (default 8)")
     p.add_argument("--freq-screen", type=int, default=2000, metavar="S",
@@ -128,6 +130,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         cost=args.cost,
         polish_objective=args.polish_objective,
         polish_steps=args.polish_steps,
+        polish_rounds=args.polish_rounds,
         checkpoint=str(out / "checkpoint.eqx") if args.method in ("iwo", "ga", "iwo+polish") else None,
         resume=args.resume,
         chunk=args.checkpoint_every,
