@@ -35,8 +35,8 @@ from .optim.run import minimize, minimize_trials
 from .optim.uncertainty import Uncertainty, cramer_rao_coverage, standard_errors
 from .problem import Problem, Records, as_problem, make_problem, parts
 
-Method = Literal["iwo", "ga", "pem", "iwo+polish", "freq", "freq+polish"]
-METHODS: tuple[str, ...] = ("iwo", "ga", "pem", "iwo+polish", "freq", "freq+polish")
+Method = Literal["iwo", "ga", "pem", "iwo+polish", "freq", "freq+polish", "iwo+freq+polish"]
+METHODS: tuple[str, ...] = ("iwo", "ga", "pem", "iwo+polish", "freq", "freq+polish", "iwo+freq+polish")
 
 
 @dataclasses.dataclass
@@ -112,7 +112,7 @@ def intervals95(trial_params: Float[np.ndarray, "K 40"]) -> dict[str, tuple[floa
 def identify(
     data: FlightData | Sequence[FlightData] | Problem | Records,
     *,
-    method: Method = "iwo+polish",
+    method: Method = "iwo+freq+polish",
     validate: FlightData | None = None,
     iterations: int = 1000,
     trials: int = 1,
@@ -131,6 +131,7 @@ def identify(
     pem_segment: float = 5.0,
     search_precision: Literal["float32", "float64"] = "float32",
     engine_options: dict[str, Any] | None = None,
+    freq_options: dict[str, Any] | None = None,
     truth: Float[np.ndarray, "40"] | None = None,
     chunk: int = 50,
     checkpoint: str | None = None,
@@ -146,7 +147,10 @@ def identify(
             or :class:`~jaxheli.problem.Records` whose settings replace those arguments.
         method: ``"iwo"``, ``"ga"``, ``"pem"``, ``"iwo+polish"`` (IWO, then optimistix on ``polish_objective``),
             ``"freq"`` (frequency responses fitted on Tischler's cost J, :func:`~jaxheli.optim.frequency_fit.
-            frequency_fit`) or ``"freq+polish"`` (that, then the polish).
+            frequency_fit`), ``"freq+polish"`` (that, then the polish) or ``"iwo+freq+polish"`` (the default: IWO
+            on the search cost, its best starting the frequency fit beside the fit's screened draws, the lowest J
+            then polished; IWO alone can settle where the rotor and stabilizer-bar time constants trade places,
+            the frequency fit alone from the box's draws in a minimum of J with a coupling of the wrong sign).
         validate: optional held-out record, scored with an estimated initial state and from rest.
         iterations: generations of IWO / GA (the paper: 1000).
         trials: independent trials (vmapped); their spread gives the 95 % intervals (the paper: 10).
@@ -157,7 +161,8 @@ def identify(
         lower, upper: search box of every engine (population, PEM, polish, standard errors; default: the
             authors' bounds).
         start: PEM's start (default: the middle of the bounds; random in the box for trials > 1); the frequency
-            fit's first start (default: its best screened draws only).
+            fit's first start for ``"freq"`` / ``"freq+polish"`` (default: its best screened draws only; for
+            ``"iwo+freq+polish"`` each trial's IWO best).
         cost: what IWO / GA minimise: ``"pearson"`` (the paper's Eq. 7) or ``"output-error"``
             (:func:`jaxheli.cost.output_error_cost`).
         polish_objective: ``"output-error"`` (default: normalised output errors, every run from its least-squares
@@ -170,9 +175,9 @@ def identify(
             times faster and its costs agree with float64 to 1e-3, see ``tests/test_blocked.py``); the polish,
             PEM and every reported metric run in the session's precision (float64 unless disabled).
         engine_options: further hyperparameters of :class:`~jaxheli.optim.IWO` / :class:`~jaxheli.optim.GA`
-            (e.g. ``{"modulation": 3.0}``; default: the paper's settings), or keywords of the frequency fit
-            (``starts``, ``screen``, ``band``, ``min_coherence``, ``max_steps``, ...); trial ``k`` of the frequency
-            fit draws its starts from ``seed + k``.
+            (e.g. ``{"modulation": 3.0}``; default: the paper's settings).
+        freq_options: keywords of the frequency fit (``starts``, ``screen``, ``band``, ``min_coherence``,
+            ``max_steps``, ...); trial ``k`` of the frequency fit draws its starts from ``seed + k``.
         truth: the true parameters when known (default: a synthetic flight's ``metadata["truth"]`` when it
             carries no unmodelled effect); scored beside the result, with the share of identifiable parameters
             within 3 Cramer-Rao standard errors of it.
@@ -196,14 +201,15 @@ def identify(
         scored = fitted
     else:
         search = problem.variant(x0="zero")
-        if method.startswith("freq"):
-            fits = [frequency_fit(search, start=start, seed=seed + k, **(engine_options or {}))
-                    for k in range(trials)]
-            trial_params, trial_costs = np.stack([f.theta for f in fits]), np.array([f.j_average for f in fits])
-        else:
+        if not method.startswith("freq"):
             run_options = {"chunk": chunk, "progress": progress, "checkpoint": checkpoint, "resume": resume}
             trial_params, trial_costs, history, evaluations = _population_trials(
                 search, GA if method == "ga" else IWO, iterations, engine_options, key, trials, run_options)
+        if "freq" in method:
+            starts = [start] * trials if method.startswith("freq") else list(trial_params)
+            fits = [frequency_fit(search, start=starts[k], seed=seed + k, **(freq_options or {}))
+                    for k in range(trials)]
+            trial_params, trial_costs = np.stack([f.theta for f in fits]), np.array([f.j_average for f in fits])
         fitted = scored = search
         if method.endswith("+polish"):
             trial_params, trial_costs, polish_info = _polish_trials(
@@ -222,7 +228,8 @@ def identify(
         "polish_steps": polish_steps, "polish_rounds": polish_rounds, "train_source": str(problem.source),
         "validate_source": None if validate is None else validate.source,
         "x64": bool(jax.config.jax_enable_x64), "search_precision": settings.precision,
-        "engine_options": dict(engine_options or {}), "evaluations": evaluations,
+        "engine_options": dict(engine_options or {}), "freq_options": dict(freq_options or {}),
+        "evaluations": evaluations,
         "standard_errors": [part.sim.describe() for part in parts(fitted)],
     }
     truth = _known_truth(data) if truth is None else np.asarray(truth, dtype=np.float64)

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..cost import SEARCH_COSTS
 from ..flights import DEFAULT_DATA
+from ..identify import METHODS
 from ..optim.polish import POLISH_OBJECTIVES
 from ._options import add_load_options, add_sim_options, outputs, read_flight, sim_options
 
@@ -16,9 +17,10 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     """Register ``identify`` on the ``jaxheli`` command line."""
     p = subparsers.add_parser("identify", help="fit the 40 parameters to a flight (IWO, GA, PEM, IWO + polish, "
                                                "frequency domain)")
-    p.add_argument("--method", choices=("iwo", "ga", "pem", "iwo+polish", "freq", "freq+polish"),
-                   default="iwo+polish", help="engine (default iwo+polish); freq: frequency responses fitted on "
-                                              "Tischler's cost J (CIFER); freq+polish: then the time-domain polish")
+    p.add_argument("--method", choices=METHODS, default="iwo+freq+polish",
+                   help="engine (default iwo+freq+polish: IWO, its best starting the frequency fit, then the "
+                        "polish); freq: frequency responses fitted on Tischler's cost J (CIFER); freq+polish: then "
+                        "the time-domain polish")
     p.add_argument("--train", nargs="+", default=[DEFAULT_DATA], metavar="FILE[:t0-t1]",
                    help="training flight file(s) (a 'jaxheli prepare' NPZ too) or 'default' (the embedded flight), "
                         "each optionally cut to a window t0-t1 s; several records are fitted at once (each its own "
@@ -131,13 +133,12 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         polish_objective=args.polish_objective,
         polish_steps=args.polish_steps,
         polish_rounds=args.polish_rounds,
-        checkpoint=str(out / "checkpoint.eqx") if args.method in ("iwo", "ga", "iwo+polish") else None,
+        checkpoint=None if args.method.startswith(("pem", "freq")) else str(out / "checkpoint.eqx"),
         resume=args.resume,
         chunk=args.checkpoint_every,
         search_precision=args.search_precision,
-        engine_options={"starts": args.freq_starts, "screen": args.freq_screen, "max_steps": args.freq_steps,
-                        "band": None if args.freq_band is None else tuple(args.freq_band)}
-        if args.method.startswith("freq") else None,
+        freq_options={"starts": args.freq_starts, "screen": args.freq_screen, "max_steps": args.freq_steps,
+                      "band": None if args.freq_band is None else tuple(args.freq_band)},
         **sim_options(args),
     )
     truth = result.truth or {}
