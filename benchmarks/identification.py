@@ -19,8 +19,8 @@ same code.
 
 Usage::
 
-    python benchmarks/identification.py synthetic [--methods pem iwo+polish] [--noises 1 3] [--iterations 100]
-    python benchmarks/identification.py real [--methods pem iwo+polish] [--iterations 1000]
+    python benchmarks/identification.py synthetic [--methods iwo+freq+polish iwo+polish pem] [--noises 1 3] [--iterations 100]
+    python benchmarks/identification.py real [--methods iwo+freq+polish iwo+polish pem] [--iterations 1000]
 
 Writes ``rows.json`` and ``tables.md`` under ``--out`` (default ``results/identification/<part>``), after every run.
 """
@@ -170,7 +170,7 @@ def _write(out: Path, rows: list[dict], table: str) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("part", choices=("synthetic", "real"))
-    parser.add_argument("--methods", nargs="+", default=["pem", "iwo+polish"], choices=METHODS)
+    parser.add_argument("--methods", nargs="+", default=["iwo+freq+polish", "iwo+polish", "pem"], choices=METHODS)
     parser.add_argument("--noises", nargs="+", type=float, default=[1.0, 3.0],
                         help="sensor-noise levels, multiples of the default (synthetic)")
     parser.add_argument("--iterations", type=int, default=100, help="IWO / GA generations")

@@ -35,6 +35,11 @@ def markdown(result: dict) -> str:
                   f"including compilation, {e['evaluations']:,} candidates scored ({e['evaluations_per_s']:.0f}/s). "
                   f"The per-candidate NumPy loop would take {base:.0f} s ({base / 3600:.1f} h): "
                   f"{base / e['seconds']:.0f}x longer."]
+    if result.get("costs"):
+        c = result["costs"]
+        lines += ["", f"## Costs the engines minimise (N = {c['N']}, P = {c['P']}, float64, compiled)", "",
+                  "| cost | candidates/s | ratio to Pearson |", "|---|---|---|"]
+        lines += [f"| {r['cost']} | {r['rate']:.0f} | {r['ratio']:.2f} |" for r in c["rows"]]
     if result.get("time_to_model"):
         lines += ["", "## Time to a model (compilation included)", "",
                   "| method | samples | s | NumPy loop s | ratio | fit % p / q / phi / theta |", "|---|---|---|---|---|---|"]

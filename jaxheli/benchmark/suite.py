@@ -12,6 +12,8 @@ if TYPE_CHECKING:
 
 SCAN_LIMIT = 4.0e7
 """The plain scan materialises ``[P, N, k]`` outputs: larger ``P * N`` are skipped (memory, not speed)."""
+COST_CANDIDATES = 40
+"""Candidates of the cost comparison (IWO scores 40 per device per call)."""
 QUICK = dict(sizes=[16, 64], samples=[300], dtypes=["float32"], generations=2, experiment_iterations=3, trials=2,
              repeats=1, model_iterations=3, pem_steps=3)
 """Tiny settings of :func:`measure` (a smoke test, seconds)."""
@@ -103,6 +105,9 @@ def measure(
     if experiment_iterations > 0:
         flight = bench_flight(min(samples)) if quick else _experiment_flight(experiment_data)
         result["experiment"] = _experiment(flight, trials, experiment_iterations, baselines)
+    from .costs import cost_rates
+
+    result["costs"] = {"N": mid, "P": COST_CANDIDATES, "rows": cost_rates(flights[mid], COST_CANDIDATES, repeats)}
     if model_methods:
         result["time_to_model"] = _time_to_model(model_methods, model_iterations, pem_steps, baselines, quick,
                                                  flights, experiment_data)

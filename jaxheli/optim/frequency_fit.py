@@ -149,7 +149,7 @@ def cifer_report(targets: tuple[FrequencyTarget, ...], theta: Float[ArrayLike, "
     return {"j": j, "bins": bins, "j_average": average, "acceptable": bool(average <= ACCEPTABLE_J)}
 
 
-def _average_j(targets: tuple[FrequencyTarget, ...], theta: Array) -> Array:
+def average_j(targets: tuple[FrequencyTarget, ...], theta: Array) -> Array:
     """Mean ``J`` over every record's fitted pairs (``inf`` when one is not finite)."""
     j = jnp.concatenate([t.costs(theta).ravel() for t in targets])
     fitted = jnp.concatenate([jnp.any(t.use, axis=0).ravel() for t in targets])
@@ -177,7 +177,7 @@ def _residual(v: Array, boxed: _Boxed) -> Array:
 @eqx.filter_jit
 def _screen(boxed: _Boxed, v: Float[Array, "S n"]) -> Float[Array, " S"]:
     """Average ``J`` of each row of unit coordinates."""
-    return jax.lax.map(lambda x: _average_j(boxed.targets, boxed.theta(x)), v, batch_size=250)
+    return jax.lax.map(lambda x: average_j(boxed.targets, boxed.theta(x)), v, batch_size=250)
 
 
 @eqx.filter_jit(compiler_options=QUICK_COMPILE)
@@ -190,7 +190,7 @@ def _solve(
     def one(v):
         sol = optx.least_squares(_residual, solver, v, args=boxed, max_steps=max_steps, throw=False)
         th0, th1 = boxed.theta(v), boxed.theta(Bounds.clip_unit(sol.value))
-        j0, j1 = _average_j(boxed.targets, th0), _average_j(boxed.targets, th1)
+        j0, j1 = average_j(boxed.targets, th0), average_j(boxed.targets, th1)
         better = jnp.all(jnp.isfinite(th1)) & (j1 <= j0)
         return (jnp.where(better, th1, th0), j0, jnp.where(better, j1, j0), sol.stats["num_steps"],
                 sol.result == optx.RESULTS.successful)
