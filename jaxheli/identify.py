@@ -148,9 +148,10 @@ def identify(
         method: ``"iwo"``, ``"ga"``, ``"pem"``, ``"iwo+polish"`` (IWO, then optimistix on ``polish_objective``),
             ``"freq"`` (frequency responses fitted on Tischler's cost J, :func:`~jaxheli.optim.frequency_fit.
             frequency_fit`), ``"freq+polish"`` (that, then the polish) or ``"iwo+freq+polish"`` (the default: IWO
-            on the search cost, its best starting the frequency fit beside the fit's screened draws, the lowest J
-            then polished; IWO alone can settle where the rotor and stabilizer-bar time constants trade places,
-            the frequency fit alone from the box's draws in a minimum of J with a coupling of the wrong sign).
+            on the search cost, its best starting the frequency fit beside the fit's screened draws; the polish's
+            first round tries the lowest J and IWO's best and goes on from the better. IWO alone can settle where
+            the rotor and stabilizer-bar time constants trade places, the frequency fit alone from the box's draws
+            in a minimum of J with a coupling of the wrong sign).
         validate: optional held-out record, scored with an estimated initial state and from rest.
         iterations: generations of IWO / GA (the paper: 1000).
         trials: independent trials (vmapped); their spread gives the 95 % intervals (the paper: 10).
@@ -205,15 +206,16 @@ def identify(
             run_options = {"chunk": chunk, "progress": progress, "checkpoint": checkpoint, "resume": resume}
             trial_params, trial_costs, history, evaluations = _population_trials(
                 search, GA if method == "ga" else IWO, iterations, engine_options, key, trials, run_options)
+        searched = trial_params if method == "iwo+freq+polish" else None
         if "freq" in method:
-            starts = [start] * trials if method.startswith("freq") else list(trial_params)
+            starts = [start] * trials if searched is None else list(searched)
             fits = [frequency_fit(search, start=starts[k], seed=seed + k, **(freq_options or {}))
                     for k in range(trials)]
             trial_params, trial_costs = np.stack([f.theta for f in fits]), np.array([f.j_average for f in fits])
         fitted = scored = search
         if method.endswith("+polish"):
             trial_params, trial_costs, polish_info = _polish_trials(
-                search, trial_params, trial_costs, polish_objective, polish_steps, polish_rounds)
+                search, trial_params, trial_costs, polish_objective, polish_steps, polish_rounds, searched)
         if (method.endswith("+polish") and polish_objective == "output-error") or method == "freq":
             # standard errors with restarts where unstable: a frequency fit may diverge over one run from rest
             fitted = output_error_problem(search, trial_params[int(np.argmin(trial_costs))])
@@ -278,11 +280,13 @@ def _population_trials(
 
 def _polish_trials(
     search: Problem | Records, trial_params: np.ndarray, trial_costs: np.ndarray, objective: PolishObjective,
-    steps: int, rounds: int,
+    steps: int, rounds: int, also: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
-    """Polish every trial; each trial's cost becomes its polished objective (the paper's cost for
-    ``"pearson"``, else the normalised sum of squares per sample, :func:`jaxheli.cost.output_error_cost`)."""
-    polished = [polish(th, search, objective=objective, max_steps=steps, rounds=rounds) for th in trial_params]
+    """Polish every trial (with ``also[k]``, a second start of trial ``k``, where given: the output-error polish's
+    first round tries both); each trial's cost becomes its polished objective (the paper's cost for ``"pearson"``,
+    else the normalised sum of squares per sample, :func:`jaxheli.cost.output_error_cost`)."""
+    starts = trial_params if also is None else np.stack([trial_params, also], axis=1)
+    polished = [polish(th, search, objective=objective, max_steps=steps, rounds=rounds) for th in starts]
     costs = np.array([p.cost if objective == "pearson" else p.rss / search.n_samples for p in polished])
     before, after = int(np.argmin(trial_costs)), int(np.argmin(costs))
     search_costs = [search_cost_of(theta, search) for theta in (trial_params[before], polished[after].theta)]

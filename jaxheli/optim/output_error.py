@@ -103,6 +103,9 @@ def output_error(
 ) -> PEMResult:
     """Fit ``problem``'s record by output error from ``start[40]`` in at most ``rounds`` rounds (see the module).
 
+    ``start`` may hold several starts ``[S, 40]``: each is solved in the first round (the same runs and compiled
+    solver for all, when the ladder applies) and the fit goes on from the lowest sum of squares.
+
     ``problem``'s scored channels, hold, g and box apply (its restarts and initial states are replaced; each
     record of a :class:`~jaxheli.problem.Records` gets its own); ``solver``, ``max_steps`` (per round), ``free``,
     ``rtol``, ``atol`` as in :func:`jaxheli.optim.pem.pem`. The result's ``rss_start`` / ``cost_start`` are those
@@ -112,17 +115,21 @@ def output_error(
     """
     if rounds < 1:
         raise ValueError(f"output_error: rounds must be >= 1, got {rounds}")
-    theta = np.asarray(start, dtype=np.float64)
+    thetas = np.asarray(start, dtype=np.float64).reshape(-1, np.shape(start)[-1])
     results: list[PEMResult] = []
     history: list[dict[str, Any]] = []
     for k in range(rounds):
         ladder = k < len(LADDER) and k < rounds - 1
-        chosen = _runs(problem, LADDER[k]) if ladder else output_error_problem(problem, theta)
-        res = fit(chosen, theta, "pem", solver, max_steps, free, rtol, atol)
+        tried = []
+        for theta in thetas:
+            chosen = _runs(problem, LADDER[k]) if ladder else output_error_problem(problem, theta)
+            tried.append((fit(chosen, theta, "pem", solver, max_steps, free, rtol, atol), chosen))
+        res, chosen = min(tried, key=lambda pair: pair[0].rss)
         history.append({"segment_s": [p.settings.segment for p in parts(chosen)], "ladder": ladder,
-                        "rss_start": res.rss_start, "rss": res.rss, "n_steps": res.n_steps, "result": res.result})
+                        "rss_start": res.rss_start, "rss": res.rss, "n_steps": res.n_steps, "result": res.result,
+                        **({"starts_rss": [r.rss for r, _ in tried]} if len(tried) > 1 else {})})
         results.append(res)
-        theta = res.theta
+        thetas = res.theta[None]
         if res.success and not ladder:
             break
     first, final = results[0], results[-1]

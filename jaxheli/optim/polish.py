@@ -27,7 +27,7 @@ POLISH_OBJECTIVES: tuple[str, ...] = ("output-error", "pearson", "pem")
 
 
 def polish(
-    theta0: Float[ArrayLike, "40"],
+    theta0: Float[ArrayLike, "*starts 40"],
     data: FlightData | Problem,
     *,
     objective: PolishObjective = "output-error",
@@ -39,7 +39,8 @@ def polish(
     atol: float = 1e-8,
     **settings: Any,
 ) -> PEMResult:
-    """Refine ``theta0[40]`` on a record.
+    """Refine ``theta0[40]`` on a record (``"output-error"`` also takes several starts ``[S, 40]``, solved in its
+    first round, the best continued: :func:`~jaxheli.optim.output_error.output_error`).
 
     ``data`` is the metaheuristic's :class:`~jaxheli.problem.Problem`, or a flight with
     :class:`~jaxheli.problem.Settings` fields in ``settings`` (default: the paper's simulation, one open-loop
