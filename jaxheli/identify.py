@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+import warnings
 from collections.abc import Sequence
 from typing import Any, Literal
 
@@ -25,7 +26,7 @@ from .cost import SearchCost
 from .data.flight import FlightData, constant_outputs, default_outputs
 from .evaluate import evaluate, search_cost_of
 from .model import G_SI, LOWER, PARAM_NAMES, UPPER
-from .optim.frequency_fit import FrequencyFitResult, cifer_report, frequency_fit
+from .optim.frequency_fit import FrequencyFitResult, IncoherentFlight, cifer_report, frequency_fit
 from .optim.ga import GA
 from .optim.iwo import IWO
 from .optim.pem import pem
@@ -195,7 +196,7 @@ def identify(
     t0 = time.perf_counter()
     key = jax.random.PRNGKey(seed)
     history, evaluations = np.zeros((trials, 0)), None
-    polish_info = fits = None
+    polish_info = fits = skipped = None
     if method == "pem":
         fitted = problem.variant(segment=pem_segment, x0="measured")
         trial_params, trial_costs = _pem_trials(fitted, key, trials, start)
@@ -209,9 +210,16 @@ def identify(
         searched = trial_params if method == "iwo+freq+polish" else None
         if "freq" in method:
             starts = [start] * trials if searched is None else list(searched)
-            fits = [frequency_fit(search, start=starts[k], seed=seed + k, **(freq_options or {}))
-                    for k in range(trials)]
-            trial_params, trial_costs = np.stack([f.theta for f in fits]), np.array([f.j_average for f in fits])
+            try:
+                fits = [frequency_fit(search, start=starts[k], seed=seed + k, **(freq_options or {}))
+                        for k in range(trials)]
+            except IncoherentFlight as error:
+                if searched is None:
+                    raise
+                skipped, searched = f"frequency fit skipped, IWO's best polished alone: {error}", None
+                warnings.warn(skipped, stacklevel=2)
+            else:
+                trial_params, trial_costs = np.stack([f.theta for f in fits]), np.array([f.j_average for f in fits])
         fitted = scored = search
         if method.endswith("+polish"):
             trial_params, trial_costs, polish_info = _polish_trials(
@@ -231,6 +239,7 @@ def identify(
         "validate_source": None if validate is None else validate.source,
         "x64": bool(jax.config.jax_enable_x64), "search_precision": settings.precision,
         "engine_options": dict(engine_options or {}), "freq_options": dict(freq_options or {}),
+        "frequency_skipped": skipped,
         "evaluations": evaluations,
         "standard_errors": [part.sim.describe() for part in parts(fitted)],
     }

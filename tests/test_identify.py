@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+from jaxheli.benchmark.throughput import bench_flight
 from jaxheli.cli import main
 from jaxheli.synth.excitation import Excitation
 from jaxheli.identify import identify, intervals95, validation_block
@@ -98,3 +99,14 @@ def test_identify_and_evaluate_cli_write_the_documented_files(flights, tmp_path)
     assert rc == 0
     ev = json.loads((tmp_path / "eval.json").read_text())
     assert ev["pearson"] == pytest.approx(content["validate"]["pearson"], abs=1e-9)
+
+
+def test_default_method_polishes_iwo_alone_when_no_pair_is_coherent():
+    """On a record too short for any coherent frequency response the default method says so and goes on (the real
+    flight A, low-passed at 3 Hz, is such a record)."""
+    flight = bench_flight(300)  # 3 s of multi-sines
+    with pytest.warns(UserWarning, match="frequency fit skipped"):
+        result = identify(flight, iterations=2, polish_steps=2, polish_rounds=1, progress=False)
+    assert result.method == "iwo+freq+polish" and result.frequency is None
+    assert "no (input, output) pair" in result.settings["frequency_skipped"]
+    assert result.polish["rounds"][0].get("starts_rss") is None  # IWO's best alone

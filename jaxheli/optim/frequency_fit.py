@@ -51,6 +51,10 @@ ACCEPTABLE_J = 100.0
 """Average ``J`` at or below which a fit is acceptable (Tischler & Remple; ``<= 50``: excellent)."""
 
 
+class IncoherentFlight(ValueError):
+    """No input-output pair of a record is coherent enough over enough bins to fit frequency responses."""
+
+
 def default_band(dt: float) -> tuple[float, float]:
     """Fitted band, Hz: 0.1 Hz to a third of the Nyquist frequency of ``dt`` s, at most 10 Hz."""
     return 0.1, min(10.0, 1.0 / (6.0 * dt))
@@ -122,7 +126,7 @@ def frequency_target(
     if pairs is not None:
         use &= np.array([[(i, o) in pairs for i in INPUT_NAMES] for o in problem.outputs])[None]
     if not use.any():
-        raise ValueError(f"{problem.source}: no (input, output) pair{'' if pairs is None else ' of ' + str(pairs)} "
+        raise IncoherentFlight(f"{problem.source}: no (input, output) pair{'' if pairs is None else ' of ' + str(pairs)} "
                          f"has {min_bins} bins in {lo:g}-{hi:.3g} Hz with coherence >= {min_coherence}; excite "
                          f"the sticks more, lower min_coherence or widen band")
     return FrequencyTarget(jnp.asarray(f[keep]), jnp.asarray(est.response)[keep], jnp.asarray(coherence),
