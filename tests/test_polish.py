@@ -78,3 +78,14 @@ def test_polish_on_the_pem_objective(flight):
     assert res.settings["objective"] == "pem"
     with pytest.raises(ValueError, match="objective"):
         polish(start, flight, objective="tic")
+
+
+def test_several_starts_keep_the_best_on_every_objective(flight):
+    """Two starts on the paper's objective: the answer is the better start's own polish (what iwo+freq+polish
+    hands the polish with ``--polish-objective pearson``)."""
+    starts = np.stack([_perturbed(0), _perturbed(1)])
+    single = [polish(s, flight, objective="pearson", max_steps=STEPS) for s in starts]
+    both = polish(starts, flight, objective="pearson", max_steps=STEPS)
+    best = min(single, key=lambda res: res.cost)
+    np.testing.assert_array_equal(both.theta, best.theta)
+    assert both.cost == best.cost

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
+import numpy as np
+
 from .._types import ArrayLike, Float
 from ..bounds import Free
 from ..data.flight import FlightData
@@ -39,8 +41,9 @@ def polish(
     atol: float = 1e-8,
     **settings: Any,
 ) -> PEMResult:
-    """Refine ``theta0[40]`` on a record (``"output-error"`` also takes several starts ``[S, 40]``, solved in its
-    first round, the best continued: :func:`~jaxheli.optim.output_error.output_error`).
+    """Refine ``theta0[40]``, or the best of several starts ``theta0[S, 40]``, on a record (``"output-error"``
+    solves every start in its first round and continues the best, :func:`~jaxheli.optim.output_error.output_error`;
+    the other objectives polish each start and keep the lowest objective).
 
     ``data`` is the metaheuristic's :class:`~jaxheli.problem.Problem`, or a flight with
     :class:`~jaxheli.problem.Settings` fields in ``settings`` (default: the paper's simulation, one open-loop
@@ -57,4 +60,6 @@ def polish(
     if objective == "output-error":
         return output_error(problem, theta0, rounds=rounds, solver=solver, max_steps=max_steps, free=free,
                             rtol=rtol, atol=atol)
-    return fit(problem, theta0, objective, solver, max_steps, free, rtol, atol)
+    starts = np.asarray(theta0, dtype=np.float64).reshape(-1, np.shape(theta0)[-1])
+    fits = [fit(problem, start, objective, solver, max_steps, free, rtol, atol) for start in starts]
+    return min(fits, key=lambda res: res.cost if objective == "pearson" else res.rss)
