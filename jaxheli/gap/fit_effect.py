@@ -1,5 +1,8 @@
-"""Fit candidate effects, batched: one vmapped Levenberg-Marquardt solve over all candidates (the engines' solver,
-:func:`jaxheli.optim.pem.least_squares_solver`).
+"""Fit candidate effects, batched: one compiled Levenberg-Marquardt solve mapped over all candidates (the engines'
+solver, :func:`jaxheli.optim.pem.least_squares_solver`; ``lax.map``, not ``vmap``: vmapped, the solves, each
+a loop over forward-mode scans, deadlocked XLA CPU's runtime with every thread waiting, for the nine fits of
+``tests/test_diagnose.py``'s clean-flight diagnosis in a plain process and for 23 fits under the test suite's
+XLA flags; mapped, neither hangs).
 
 Every candidate frees ``K`` entries of ``eta`` (``index[C, K]``, padded with a dummy slot), each in its
 physical box (:func:`jaxheli.effects.registry.box`), started at the effect's start values. With the base
@@ -81,7 +84,7 @@ def fit_candidates(
     max_steps: int = 40,
     theta_box: Bounds | None = None,
 ) -> Fit:
-    """Fit every candidate on ``pred``'s flight (vmapped LM; ``max_steps`` is static); with ``theta_box`` the
+    """Fit every candidate on ``pred``'s flight (LM mapped over the candidates; ``max_steps`` is static); with ``theta_box`` the
     base parameters are re-identified jointly in that box (it must contain ``theta``), else held at ``theta``."""
     joint = theta_box is not None
 
@@ -119,7 +122,7 @@ def fit_candidates(
         return (z, stderr[-k:], th, rss, res.shape[0] / colour, jnp.sum(active[-k:]), sol.stats["num_steps"],
                 sol.result == optx.RESULTS.successful)
 
-    return Fit(*jax.vmap(one)(cand.index, cand.start, cand.lower, cand.upper))
+    return Fit(*jax.lax.map(lambda row: one(*row), (cand.index, cand.start, cand.lower, cand.upper)))
 
 
 def _colour_factor(res: Float[Array, "N k"]) -> Float[Array, ""]:
