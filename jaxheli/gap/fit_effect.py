@@ -84,8 +84,9 @@ def fit_candidates(
     max_steps: int = 40,
     theta_box: Bounds | None = None,
 ) -> Fit:
-    """Fit every candidate on ``pred``'s flight (LM mapped over the candidates; ``max_steps`` is static); with ``theta_box`` the
-    base parameters are re-identified jointly in that box (it must contain ``theta``), else held at ``theta``."""
+    """Fit every candidate on ``pred``'s flight (LM mapped over the candidates; ``max_steps`` is static); with
+    ``theta_box`` the base parameters are re-identified jointly in that box (it must contain ``theta``), else held
+    at ``theta``."""
     joint = theta_box is not None
 
     def one(idx, z0, lo, hi):

@@ -126,9 +126,10 @@ def frequency_target(
     if pairs is not None:
         use &= np.array([[(i, o) in pairs for i in INPUT_NAMES] for o in problem.outputs])[None]
     if not use.any():
-        raise IncoherentFlight(f"{problem.source}: no (input, output) pair{'' if pairs is None else ' of ' + str(pairs)} "
-                         f"has {min_bins} bins in {lo:g}-{hi:.3g} Hz with coherence >= {min_coherence}; excite "
-                         f"the sticks more, lower min_coherence or widen band")
+        named = "" if pairs is None else " of " + str(pairs)
+        raise IncoherentFlight(f"{problem.source}: no (input, output) pair{named} has {min_bins} bins in "
+                               f"{lo:g}-{hi:.3g} Hz with coherence >= {min_coherence}; excite the sticks more, lower "
+                               f"min_coherence or widen band")
     return FrequencyTarget(jnp.asarray(f[keep]), jnp.asarray(est.response)[keep], jnp.asarray(coherence),
                            jnp.asarray(use), problem.outputs, problem.settings.g,
                            model_step(problem.settings.hold, problem.dt))

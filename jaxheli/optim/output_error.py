@@ -120,9 +120,10 @@ def output_error(
     history: list[dict[str, Any]] = []
     for k in range(rounds):
         ladder = k < len(LADDER) and k < rounds - 1
+        runs = _runs(problem, LADDER[k]) if ladder else None
         tried = []
         for theta in thetas:
-            chosen = _runs(problem, LADDER[k]) if ladder else output_error_problem(problem, theta)
+            chosen = runs if ladder else output_error_problem(problem, theta)
             tried.append((fit(chosen, theta, "pem", solver, max_steps, free, rtol, atol), chosen))
         res, chosen = min(tried, key=lambda pair: pair[0].rss)
         history.append({"segment_s": [p.settings.segment for p in parts(chosen)], "ladder": ladder,
