@@ -30,12 +30,12 @@ _UNITS = {"u": "m/s", "v": "m/s", "w": "m/s", "p": "rad/s", "q": "rad/s", "r": "
 
 
 def _per_axis(name: str, group: str, eta_order: int, unit: str, start: float, bound: float, term: Term,
-              value: Callable[[np.random.Generator], float]) -> Effect:
-    """An effect with one parameter ``{group}_{axis}`` per stick axis, acting through ``|eta|``, injected on
-    the dice's random axis at ``value(rng)``."""
+              value: Callable[[np.random.Generator], float], tries: tuple[float, ...]) -> Effect:
+    """An effect with one parameter ``{group}_{axis}`` per stick axis, acting through ``|eta|``, further
+    starts ``tries``, injected on the dice's random axis at ``value(rng)``."""
 
     def params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
-        return tuple(Param(at(group, i), f"{group}_{a}", unit, a, start, True, bound)
+        return tuple(Param(at(group, i), f"{group}_{a}", unit, a, start, True, bound, tries=tries)
                      for i, a in enumerate(INPUT_NAMES))
 
     def inject(dice: Dice) -> Draw:
@@ -61,9 +61,10 @@ def _delay(plant: PlantView, history: Float[Array, "D 4"], sticks: Float[Array, 
 
 
 INPUT_DELAY = _per_axis("input_delay", "delay", eta_order=0, unit="s", start=0.01, bound=0.5,
-                        term=Term("command", _delay, init=_delay_history), value=lambda rng: rng.uniform(0.04, 0.12))
-"""Transport delay per stick axis (s; servo and transport delays are 20-150 ms, plausible up to 0.5 s).
-Injected: 40-120 ms on one random axis."""
+                        term=Term("command", _delay, init=_delay_history), value=lambda rng: rng.uniform(0.04, 0.12),
+                        tries=(0.15,))
+"""Transport delay per stick axis (s; servo and transport delays are 20-150 ms, plausible up to 0.5 s; a
+further start at 150 ms). Injected: 40-120 ms on one random axis."""
 
 
 def _lag(plant: PlantView, state: None, sticks: Float[Array, "4"], servo: Float[Array, "4"]
@@ -75,9 +76,9 @@ def _lag(plant: PlantView, state: None, sticks: Float[Array, "4"], servo: Float[
 
 
 ACTUATOR_LAG = _per_axis("actuator_lag", "lag", eta_order=1, unit="s", start=0.01, bound=0.5,
-                         term=Term("servo", _lag), value=lambda rng: rng.uniform(0.05, 0.15))
-"""First-order servo lag per stick axis (s; rotor lags ~0.1 s, plausible up to 0.5 s). Injected: 50-150 ms
-on one random axis."""
+                         term=Term("servo", _lag), value=lambda rng: rng.uniform(0.05, 0.15), tries=(0.2,))
+"""First-order servo lag per stick axis (s; rotor lags ~0.1 s, plausible up to 0.5 s; a further start at
+200 ms). Injected: 50-150 ms on one random axis."""
 
 
 _BIAS_BOUND = {"m/s": 3.0, "rad/s": 0.5, "rad": 0.35}
@@ -131,7 +132,7 @@ flight, on one random channel."""
 def _process_noise_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
     return (Param(at("gust", 0), "gust_std", "m/s", "u,v,w", 0.3, True, 5.0),
             Param(at("gust", 1), "gust_tau", "s", "u,v,w", 1.0, True, 10.0, shape=True),
-            Param(at("gust", 2), "state_noise_cut", "ln", "u,v,w", 1.0, True, 10.0, shape=True))
+            Param(at("gust", 2), "state_noise_cut", "ln", "u,v,w", 1.0, True, 10.0, shape=True, nuisance=True))
 
 
 def _inject_gusts(dice: Dice) -> Draw:
@@ -150,14 +151,15 @@ PROCESS_NOISE = Effect(
 """First-order Gauss-Markov wind on u, v, w: std (m/s, plausible up to 5), correlation time (s, up to 10;
 1 s at no effect) and a cut ``c`` of the restart filter's white state noise (``track`` to ``track e^-|c|``,
 ``|c|`` up to 10: the filter-error method estimates the whole process-noise model; once the gusts explain the
-wind, the filter need not follow the sensors as closely as at the base model's tuned level). No plant term:
+wind, the filter need not follow the sensors as closely as at the base model's tuned level). The cut is a
+nuisance: every fit frees it, so the effect is credited for the gusts alone, not for re-tuning the filter. No plant term:
 the wind enters every plant through ``E``; :func:`jaxheli.gap.kalman.gust_filter` reads this group.
 Injected: a flight in gusts of 0.3-0.8 m/s with 0.5-2 s correlation."""
 
 
 def _drag_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
-    return (Param(at("drag", 0), "Xuu", "1/m", "u", 0.0, False, 10.0),
-            Param(at("drag", 1), "Yvv", "1/m", "v", 0.0, False, 10.0))
+    return (Param(at("drag", 0), "Xuu", "1/m", "u", 0.0, False, 10.0, tries=(-3.0,)),
+            Param(at("drag", 1), "Yvv", "1/m", "v", 0.0, False, 10.0, tries=(-3.0,)))
 
 
 def _drag(plant: PlantView, state: None, x: Float[Array, "13"], applied: Float[Array, "4"]
@@ -181,7 +183,8 @@ QUADRATIC_DRAG = Effect(
     terms=(Term("airframe", _drag),),
     inject=_inject_drag,
 )
-"""Quadratic drag on u and v (1/m, plausible up to 10). Injected: 1-3 1/m on both."""
+"""Quadratic drag on u and v (1/m, plausible up to 10; a further start at -3 on each). Injected: 1-3 1/m on
+both."""
 
 
 def _saturate(plant: PlantView, state: None, sticks: Float[Array, "4"], servo: Float[Array, "4"]
@@ -192,9 +195,10 @@ def _saturate(plant: PlantView, state: None, sticks: Float[Array, "4"], servo: F
 
 CONTROL_SATURATION = _per_axis("control_saturation", "sat", eta_order=2, unit="1/stick^2", start=1.0,
                                bound=100.0, term=Term("command", _saturate),
-                               value=lambda rng: rng.uniform(0.15, 0.3) ** -2)
+                               value=lambda rng: rng.uniform(0.15, 0.3) ** -2, tries=(25.0,))
 """Saturation of the delayed sticks per axis (1/stick^2, plausible up to 100: a limit no tighter than 0.1 of
-full stick). Injected: a limit at 0.15-0.3 stick on one random axis."""
+full stick; a further start at 25, a limit at 0.2 stick). Injected: a limit at 0.15-0.3 stick on one random
+axis."""
 
 
 def _rotor_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:

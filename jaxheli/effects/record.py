@@ -56,7 +56,10 @@ SENSOR: tuple[str, ...] = ("mounting", "reading")
 class Param:
     """One effect parameter: ``eta[slot]``; ``positive`` ones act through ``|eta|`` and are reported so;
     ``bound`` is the largest physically plausible magnitude (units of ``unit``); a ``shape`` parameter (a
-    time constant) only shapes an effect whose size the others set, so it is never evidence of it."""
+    time constant) only shapes an effect whose size the others set, so it is never evidence of it; ``tries``
+    are further start values, typical sizes of the effect from which a fit reaches a large one that it stops
+    short of from ``start`` (:func:`jaxheli.effects.registry.start_rows`); a ``nuisance`` parameter is a
+    setting of the predictor rather than of the plant, freed in every fit (:func:`jaxheli.effects.registry.nuisance_arrays`)."""
 
     slot: int
     name: str
@@ -66,6 +69,8 @@ class Param:
     positive: bool
     bound: float = float("inf")
     shape: bool = False
+    tries: tuple[float, ...] = ()
+    nuisance: bool = False
 
 
 @dataclasses.dataclass(frozen=True)

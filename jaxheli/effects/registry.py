@@ -61,10 +61,55 @@ def candidate_arrays(
     return index, start, lower, upper
 
 
+def start_rows(effect: str, outputs: tuple[str, ...]) -> Float[np.ndarray, "R K"]:
+    """Start values of ``effect``'s fits, one row per start: the start values; for each further start ``t``
+    of :attr:`Param.tries`, every parameter that has one at it together (when two or more have), then each
+    such parameter alone at it (e.g. a 150 ms delay on all four axes, then on each axis in turn)."""
+    ps = params(effect, outputs)
+    first = np.array([p.start for p in ps], dtype=np.float64)
+    rows = [first]
+    for t in range(max((len(p.tries) for p in ps), default=0)):
+        tried = [k for k, p in enumerate(ps) if len(p.tries) > t]
+        alone = [[k] for k in tried]
+        for ks in ([tried] if len(tried) > 1 else []) + alone:
+            row = first.copy()
+            row[ks] = [ps[k].tries[t] for k in ks]
+            rows.append(row)
+    return np.stack(rows)
+
+
+def tried_arrays(
+    effects: tuple[str, ...] | list[str], outputs: tuple[str, ...], shape: tuple[int, int] | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`candidate_arrays` of the single effects with a row per start of each (:func:`start_rows`), and
+    ``owner[R]``, the effect (index into ``effects``) each row fits. ``shape`` pads as there, its rows
+    counting starts (:func:`joint_shape`); padding rows repeat the last row and its owner."""
+    rows, width = shape if shape is not None else (0, 0)
+    index, start, lower, upper = candidate_arrays(effects, outputs, shape=(len(effects), width))
+    owner, first = [], []
+    for c, effect in enumerate(effects):
+        for row in start_rows(effect, outputs):
+            owner.append(c)
+            first.append(np.concatenate([row, start[c, len(row):]]))
+    extra = max(0, rows - len(owner))
+    owner = np.asarray(owner + owner[-1:] * extra, dtype=np.int32)
+    return index[owner], np.stack(first + first[-1:] * extra), lower[owner], upper[owner], owner
+
+
+def nuisance_arrays(outputs: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(slot[S], start[S], lower[S], upper[S])`` of the nuisance parameters (:attr:`Param.nuisance`): settings
+    of the predictor every fit frees, the base model's alone included (e.g. the restart filter's level), so no
+    candidate is credited for re-tuning them."""
+    found = [(p, lo, hi) for e in ALL for p, lo, hi in zip(params(e, outputs), *box(e, outputs)) if p.nuisance]
+    return (np.array([p.slot for p, _, _ in found], dtype=np.int32), np.array([p.start for p, _, _ in found]),
+            np.array([lo for _, lo, _ in found]), np.array([hi for _, _, hi in found]))
+
+
 def joint_shape(effects: tuple[str, ...] | list[str], outputs: tuple[str, ...], top: int) -> tuple[int, int]:
-    """``(C, K)`` that holds both the single fits of ``effects`` and the joint fit of any ``top`` of them."""
+    """``(R, K)`` that holds both the single fits of ``effects``, a row per start (:func:`tried_arrays`), and
+    the joint fit of any ``top`` of them."""
     widths = sorted((len(params(e, outputs)) for e in effects), reverse=True)
-    return len(widths), sum(widths[: max(top, 1)])
+    return sum(len(start_rows(e, outputs)) for e in effects), sum(widths[: max(top, 1)])
 
 
 Z95 = 1.959963984540054

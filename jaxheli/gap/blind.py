@@ -156,12 +156,12 @@ def run_trial(
     ident = pem(train, max_steps=pem_steps, outputs=outputs, lower=BOX[0], upper=BOX[1])
     theta = ident.theta
     train_pred, validate_pred = predictor_pair(theta, train, validate, segment=segment)
-    index, start, lower, upper = fx.candidate_arrays(fx.ALL, outputs)
-    oracle = _oracle_row(kind, inj, index, start, lower, upper)
-    arrays = [np.vstack([a, o]) for a, o in zip((index, start, lower, upper), oracle)]
-    cand = with_reference(*arrays, pad=len(no_effect(outputs)))
+    *arrays, owner = fx.tried_arrays(fx.ALL, outputs)
+    oracle = _oracle_row(kind, inj, *fx.candidate_arrays(fx.ALL, outputs))
+    arrays = [np.vstack([a, o]) for a, o in zip(arrays, oracle)]
+    cand = with_reference(*arrays, pad=len(no_effect(outputs)), shared=fx.nuisance_arrays(outputs))
     fit, gaps, segs, rss_start = fit_and_score(train_pred, validate_pred, theta, cand, max_steps,
-                                               theta_box(theta, Bounds(*BOX)))
+                                               theta_box(theta, Bounds(*BOX)), np.r_[owner, len(fx.ALL)])
     n = len(fx.ALL) + 1
     ranking = shrink_entries(list(fx.ALL), outputs, jax.tree.map(lambda a: a[:n], fit), gaps[1:n + 1],
                              segs[1:n + 1], min_shrink)

@@ -51,13 +51,22 @@ class Candidates(eqx.Module):
     upper: Float[Array, "C K"]
 
 
-def with_reference(index, start, lower, upper, pad: int) -> Candidates:
+def with_reference(index, start, lower, upper, pad: int, shared=None) -> Candidates:
     """:class:`Candidates` from :func:`~jaxheli.effects.registry.candidate_arrays`' arrays, with a first row
     that frees no effect (every slot the dummy ``pad``): the base model fitted alone, the yardstick every
-    candidate is credited against."""
+    candidate is credited against. ``shared`` (``(slot[S], start[S], lower[S], upper[S])``,
+    :func:`~jaxheli.effects.registry.nuisance_arrays`) adds slots every row frees, the reference's included,
+    as trailing columns (the dummy in a row that frees the slot already)."""
     rows = [np.asarray(index), np.asarray(start), np.asarray(lower), np.asarray(upper)]
     first = [np.full_like(rows[0][:1], pad)] + [np.zeros_like(a[:1]) for a in rows[1:]]
-    return Candidates(*(jnp.asarray(np.concatenate([f, a], axis=0)) for f, a in zip(first, rows)))
+    rows = [np.concatenate([f, a], axis=0) for f, a in zip(first, rows)]
+    if shared is not None:
+        slot = np.asarray(shared[0])
+        held = np.any(rows[0][:, :, None] == slot[None, None, :], axis=1)
+        extra = [np.where(held, fill, np.broadcast_to(np.asarray(a), held.shape))
+                 for a, fill in zip(shared, (pad, 0.0, 0.0, 0.0))]
+        rows = [np.concatenate([a, e.astype(a.dtype)], axis=1) for a, e in zip(rows, extra)]
+    return Candidates(*(jnp.asarray(a) for a in rows))
 
 
 class Fit(eqx.Module):

@@ -124,7 +124,8 @@ def shrink_entries(
                                 and not bound and z >= MIN_Z),
             "at_bound": bound,
             "evidence_z": z,
-            "lr": lr_test(float(fit.rss[0]), float(fit.rss[c]), float(fit.n_eff[c]), int(fit.k_active[c])),
+            "lr": lr_test(float(fit.rss[0]), float(fit.rss[c]), float(fit.n_eff[c]),
+                          int(fit.k_active[c] - fit.k_active[0])),
             "p_value": p_value,
             "gap_base": total_ref,
             "gap": float(np.mean(gaps[c])),
@@ -206,14 +207,17 @@ _REFERENCE_ROUNDS = 3
 
 def fit_and_score(
     train: Predictor, validate: Predictor, theta: Float[ArrayLike, "40"], cand: Candidates, max_steps: int,
-    box: Bounds | None,
+    box: Bounds | None, owner: np.ndarray | None = None,
 ) -> tuple[Fit, np.ndarray, np.ndarray, float | None]:
     """Fit the rows of ``cand`` (row 0 the reference, :func:`~jaxheli.gap.fit_effect.with_reference`) on
     ``train`` and score them on ``validate``: ``(fit, gaps[1 + C, k], segs[1 + C, S], rss_start)``, the first
     row of ``gaps``/``segs`` being the given base ``theta``. Jointly re-identified in ``box`` when given, in
     two stages: the reference first (up to :data:`_REFERENCE_ROUNDS` rounds of :data:`_REFERENCE_STEPS`
     budgets), then every row, the reference again among them, from its optimum; ``rss_start`` is the
-    reference's training RSS there (``None`` when frozen)."""
+    reference's training RSS there (``None`` when frozen). With ``owner`` (the candidate each row after the
+    reference fits, e.g. one row per start, :func:`~jaxheli.effects.registry.tried_arrays`) each candidate
+    keeps its row of least training RSS (:func:`best_rows`): the rows returned are the reference's and one per
+    candidate, in ``owner``'s numbering."""
     base = jnp.asarray(no_effect(train.outputs))
     given = jnp.asarray(theta)
     start_theta, rss_start = given, None
@@ -223,13 +227,35 @@ def fit_and_score(
             first = fit_candidates(train, start_theta, base, reference, _REFERENCE_STEPS * max_steps, box)
             settled = rss_start is not None and 100.0 * (rss_start - float(first.rss[0])) < SETTLED_PCT * rss_start
             start_theta, rss_start = first.theta[0], float(first.rss[0])
+            reference = dataclasses.replace(reference, start=first.z)
             if settled or bool(first.converged[0]):
                 break
+        cand = _carry_reference(cand, reference.start[0])
     fit = fit_candidates(train, start_theta, base, cand, max_steps, box)
     etas = jax.vmap(lambda i, z: embed(base, i, z))(cand.index, fit.z)
     gaps, segs = (np.asarray(a) for a in score(validate, jnp.concatenate([given[None, :], fit.theta]),
                                                 jnp.concatenate([base[None, :], etas])))
+    if owner is not None:
+        keep = best_rows(np.asarray(fit.rss), owner)
+        fit, gaps, segs = jax.tree.map(lambda a: a[keep], fit), gaps[np.r_[0, keep + 1]], segs[np.r_[0, keep + 1]]
     return fit, gaps, segs, rss_start
+
+
+def _carry_reference(cand: Candidates, z: Float[ArrayLike, "K"]) -> Candidates:
+    """``cand`` with every row started where the reference (row 0) ended in the slots it frees (``z``: its
+    fitted values; nuisance parameters such as the restart filter's level)."""
+    start = cand.start
+    for j in range(cand.index.shape[1]):
+        start = jnp.where(cand.index == cand.index[0, j], jnp.clip(z[j], cand.lower, cand.upper), start)
+    return dataclasses.replace(cand, start=start)
+
+
+def best_rows(rss: Float[np.ndarray, "R"], owner: np.ndarray) -> np.ndarray:
+    """Rows of a batched fit to keep: the reference (row 0), then for each candidate ``c`` the row among those
+    ``owner`` gives it (``owner[r - 1]``, rows after the reference) of least training RSS ``rss``."""
+    rss, owner = np.asarray(rss)[1:], np.asarray(owner)
+    return np.array([0] + [1 + int(np.flatnonzero(owner == c)[np.argmin(rss[owner == c])])
+                           for c in range(int(owner.max()) + 1)])
 
 
 def _evaluate(
@@ -239,11 +265,15 @@ def _evaluate(
 ) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """Ranking entries and :func:`base_refit` of the candidates ``names`` (:func:`fit_and_score`)."""
     outputs = train.outputs
-    index, start, lower, upper = fx.candidate_arrays(names, outputs, combine=combine, shape=shape)
+    owner = None
+    if combine:
+        index, start, lower, upper = fx.candidate_arrays(names, outputs, combine=True, shape=shape)
+    else:
+        index, start, lower, upper, owner = fx.tried_arrays(names, outputs, shape=shape)
     if warm is not None:
         start[:, : len(warm)] = np.clip(warm, lower[:, : len(warm)], upper[:, : len(warm)])
-    cand = with_reference(index, start, lower, upper, len(no_effect(outputs)))
-    fit, gaps, segs, rss_start = fit_and_score(train, validate, theta, cand, max_steps, box)
+    cand = with_reference(index, start, lower, upper, len(no_effect(outputs)), fx.nuisance_arrays(outputs))
+    fit, gaps, segs, rss_start = fit_and_score(train, validate, theta, cand, max_steps, box, owner)
     labels = ["+".join(names)] if combine else list(names)
     n = len(labels) + 1
     ranking = shrink_entries(labels, outputs, jax.tree.map(lambda a: a[:n], fit), gaps[1:n + 1], segs[1:n + 1],
