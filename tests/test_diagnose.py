@@ -141,7 +141,9 @@ def test_joint_reidentification_finds_the_delay_and_credits_it_beyond_the_refitt
         assert np.all(lower <= values) and np.all(values <= upper), e["effect"]
     assert d["verdict"].startswith(("input_delay", "base model under-fitted")) and "input_delay" in d["verdict"]
     theta = np.array([refit["theta"][n] for n in PARAM_NAMES])
-    reference = reference_prediction(theta, validate, segment=2.0, track=d["track"])
+    track = d["track"] * np.exp(-abs(refit["nuisance"]["state_noise_cut"]))  # the reference re-tunes the filter
+    assert set(refit["nuisance"]) == set(top["nuisance"]) == {"state_noise_cut"}
+    reference = reference_prediction(theta, validate, segment=2.0, track=track)
     np.testing.assert_allclose(np.mean(nmse(reference, validate.outputs)), refit["gap"], rtol=1e-6)
     np.testing.assert_allclose(top["gap_base"], refit["gap"], rtol=1e-9)
     np.testing.assert_allclose(d["gap_before"]["total"], refit["gap_base"], rtol=1e-9)

@@ -30,12 +30,14 @@ _UNITS = {"u": "m/s", "v": "m/s", "w": "m/s", "p": "rad/s", "q": "rad/s", "r": "
 
 
 def _per_axis(name: str, group: str, eta_order: int, unit: str, start: float, bound: float, term: Term,
-              value: Callable[[np.random.Generator], float], tries: tuple[float, ...]) -> Effect:
+              value: Callable[[np.random.Generator], float], tries: tuple[float, ...], together: bool = False
+              ) -> Effect:
     """An effect with one parameter ``{group}_{axis}`` per stick axis, acting through ``|eta|``, further
-    starts ``tries``, injected on the dice's random axis at ``value(rng)``."""
+    starts ``tries`` (on every axis at once too with ``together``), injected on the dice's random axis at
+    ``value(rng)``."""
 
     def params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
-        return tuple(Param(at(group, i), f"{group}_{a}", unit, a, start, True, bound, tries=tries)
+        return tuple(Param(at(group, i), f"{group}_{a}", unit, a, start, True, bound, tries=tries, together=together)
                      for i, a in enumerate(INPUT_NAMES))
 
     def inject(dice: Dice) -> Draw:
@@ -158,8 +160,8 @@ Injected: a flight in gusts of 0.3-0.8 m/s with 0.5-2 s correlation."""
 
 
 def _drag_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
-    return (Param(at("drag", 0), "Xuu", "1/m", "u", 0.0, False, 10.0, tries=(-3.0,)),
-            Param(at("drag", 1), "Yvv", "1/m", "v", 0.0, False, 10.0, tries=(-3.0,)))
+    return (Param(at("drag", 0), "Xuu", "1/m", "u", 0.0, False, 10.0, tries=(-3.0,), together=True),
+            Param(at("drag", 1), "Yvv", "1/m", "v", 0.0, False, 10.0, tries=(-3.0,), together=True))
 
 
 def _drag(plant: PlantView, state: None, x: Float[Array, "13"], applied: Float[Array, "4"]
@@ -183,7 +185,7 @@ QUADRATIC_DRAG = Effect(
     terms=(Term("airframe", _drag),),
     inject=_inject_drag,
 )
-"""Quadratic drag on u and v (1/m, plausible up to 10; a further start at -3 on each). Injected: 1-3 1/m on
+"""Quadratic drag on u and v (1/m, plausible up to 10; further starts at -3 on both and on each). Injected: 1-3 1/m on
 both."""
 
 
@@ -195,9 +197,9 @@ def _saturate(plant: PlantView, state: None, sticks: Float[Array, "4"], servo: F
 
 CONTROL_SATURATION = _per_axis("control_saturation", "sat", eta_order=2, unit="1/stick^2", start=1.0,
                                bound=100.0, term=Term("command", _saturate),
-                               value=lambda rng: rng.uniform(0.15, 0.3) ** -2, tries=(25.0,))
+                               value=lambda rng: rng.uniform(0.15, 0.3) ** -2, tries=(25.0,), together=True)
 """Saturation of the delayed sticks per axis (1/stick^2, plausible up to 100: a limit no tighter than 0.1 of
-full stick; a further start at 25, a limit at 0.2 stick). Injected: a limit at 0.15-0.3 stick on one random
+full stick; further starts at 25, a limit at 0.2 stick, on all axes and on each). Injected: a limit at 0.15-0.3 stick on one random
 axis."""
 
 

@@ -58,7 +58,8 @@ class Param:
     ``bound`` is the largest physically plausible magnitude (units of ``unit``); a ``shape`` parameter (a
     time constant) only shapes an effect whose size the others set, so it is never evidence of it; ``tries``
     are further start values, typical sizes of the effect from which a fit reaches a large one that it stops
-    short of from ``start`` (:func:`jaxheli.effects.registry.start_rows`); a ``nuisance`` parameter is a
+    short of from ``start`` (:func:`jaxheli.effects.registry.start_rows`), each parameter alone and, with
+    ``together``, all such parameters of the effect at once too; a ``nuisance`` parameter is a
     setting of the predictor rather than of the plant, freed in every fit (:func:`jaxheli.effects.registry.nuisance_arrays`)."""
 
     slot: int
@@ -70,6 +71,7 @@ class Param:
     bound: float = float("inf")
     shape: bool = False
     tries: tuple[float, ...] = ()
+    together: bool = False
     nuisance: bool = False
 
 

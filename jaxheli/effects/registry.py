@@ -63,15 +63,16 @@ def candidate_arrays(
 
 def start_rows(effect: str, outputs: tuple[str, ...]) -> Float[np.ndarray, "R K"]:
     """Start values of ``effect``'s fits, one row per start: the start values; for each further start ``t``
-    of :attr:`Param.tries`, every parameter that has one at it together (when two or more have), then each
-    such parameter alone at it (e.g. a 150 ms delay on all four axes, then on each axis in turn)."""
+    of :attr:`Param.tries`, the parameters that have one and are tried :attr:`Param.together` at it at once
+    (when two or more are), then each parameter that has one alone at it (e.g. a saturation limit at 0.2
+    stick on all four axes, then on each axis in turn)."""
     ps = params(effect, outputs)
     first = np.array([p.start for p in ps], dtype=np.float64)
     rows = [first]
     for t in range(max((len(p.tries) for p in ps), default=0)):
         tried = [k for k, p in enumerate(ps) if len(p.tries) > t]
-        alone = [[k] for k in tried]
-        for ks in ([tried] if len(tried) > 1 else []) + alone:
+        together = [k for k in tried if ps[k].together]
+        for ks in ([together] if len(together) > 1 else []) + [[k] for k in tried]:
             row = first.copy()
             row[ks] = [ps[k].tries[t] for k in ks]
             rows.append(row)
@@ -96,13 +97,18 @@ def tried_arrays(
     return index[owner], np.stack(first + first[-1:] * extra), lower[owner], upper[owner], owner
 
 
+def nuisance(outputs: tuple[str, ...]) -> tuple[Param, ...]:
+    """The nuisance parameters (:attr:`Param.nuisance`): settings of the predictor every fit frees, the base
+    model's alone included (e.g. the restart filter's level), so no candidate is credited for re-tuning them."""
+    return tuple(p for e in ALL for p in params(e, outputs) if p.nuisance)
+
+
 def nuisance_arrays(outputs: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(slot[S], start[S], lower[S], upper[S])`` of the nuisance parameters (:attr:`Param.nuisance`): settings
-    of the predictor every fit frees, the base model's alone included (e.g. the restart filter's level), so no
-    candidate is credited for re-tuning them."""
-    found = [(p, lo, hi) for e in ALL for p, lo, hi in zip(params(e, outputs), *box(e, outputs)) if p.nuisance]
-    return (np.array([p.slot for p, _, _ in found], dtype=np.int32), np.array([p.start for p, _, _ in found]),
-            np.array([lo for _, lo, _ in found]), np.array([hi for _, _, hi in found]))
+    """``(slot[S], start[S], lower[S], upper[S])`` of the :func:`nuisance` parameters (their box as
+    :func:`box` gives it)."""
+    ps = nuisance(outputs)
+    return (np.array([p.slot for p in ps], dtype=np.int32), np.array([p.start for p in ps]),
+            np.array([0.0 if p.positive else -p.bound for p in ps]), np.array([p.bound for p in ps]))
 
 
 def joint_shape(effects: tuple[str, ...] | list[str], outputs: tuple[str, ...], top: int) -> tuple[int, int]:

@@ -164,7 +164,7 @@ def run_trial(
                                                theta_box(theta, Bounds(*BOX)), np.r_[owner, len(fx.ALL)])
     n = len(fx.ALL) + 1
     ranking = shrink_entries(list(fx.ALL), outputs, jax.tree.map(lambda a: a[:n], fit), gaps[1:n + 1],
-                             segs[1:n + 1], min_shrink)
+                             segs[1:n + 1], min_shrink, shared=True)
     refit = base_refit(fit, gaps, segs, outputs, rss_start, min_shrink)
     ranking = [{k: v for k, v in e.items() if k != "theta"} for e in withhold(ranking, refit)]
     best = next((e for e in ranking if e["significant"]), None)

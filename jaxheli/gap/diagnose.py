@@ -53,10 +53,15 @@ def shared_outputs(train: FlightData, validate: FlightData) -> tuple[str, ...]:
     return names
 
 
-def effect_eta(effect: str, params: dict[str, dict[str, float]], outputs: tuple[str, ...]) -> Float[np.ndarray, "E"]:
+def effect_eta(
+    effect: str, params: dict[str, dict[str, float]], outputs: tuple[str, ...], nuisance: dict[str, float] | None = None,
+) -> Float[np.ndarray, "E"]:
     """``eta`` of a ranking entry: its fitted ``params`` (as :func:`~jaxheli.effects.registry.describe` names them)
-    on the no-effect vector; ``effect`` may be a combination ``"a+b"``."""
+    and ``nuisance`` values (by name, :func:`~jaxheli.effects.registry.nuisance`) on the no-effect vector;
+    ``effect`` may be a combination ``"a+b"``."""
     eta = no_effect(outputs)
+    for p in fx.nuisance(outputs):
+        eta[p.slot] = (nuisance or {}).get(p.name, eta[p.slot])
     for part in effect.split("+"):
         for p in fx.params(part, outputs):
             if p.name not in params:
@@ -86,7 +91,8 @@ def predictions(
     segment-wise predictor the ranking scores with (restart filter level ``track``: the diagnosis's
     ``track``); given a predictor, its settings hold."""
     pred = flight if isinstance(flight, Predictor) else make_predictor(flight, segment=segment, g=g, track=track)
-    etas = [no_effect(pred.outputs)] + [effect_eta(e["effect"], e["params"], pred.outputs) for e in entries]
+    etas = [no_effect(pred.outputs)] + [effect_eta(e["effect"], e["params"], pred.outputs, e.get("nuisance"))
+                                        for e in entries]
     thetas = [np.asarray(theta, np.float64)] + [entry_theta(e, theta) for e in entries]
     return np.asarray(_predict(pred, jnp.asarray(np.stack(thetas)), jnp.asarray(np.stack(etas))))
 

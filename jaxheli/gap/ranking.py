@@ -8,7 +8,11 @@ the same solver, budget and start. Fitting an effect on top of a frozen, under-f
 for whatever misfit its extra freedom soaks up; the reference absorbs that first. The reference's own
 held-out shrink of the given base is reported (:func:`base_refit`): beyond the noise, the base model is
 under-fitted and the verdict says so before any effect; while the re-fitted base is still converging
-(:data:`SETTLED_PCT`), no effect is credited at all.
+(:data:`SETTLED_PCT`), no effect is credited at all. Re-identified jointly, every fit, the reference's included, also frees the
+nuisance parameters (:func:`~jaxheli.effects.registry.nuisance`: the restart filter's level), so no candidate
+is paid for re-tuning the predictor. An effect whose size a fit from one start stops short of (a tight
+saturation, a long lag) is fitted from further starts too (:func:`~jaxheli.effects.registry.start_rows`), and
+the start of least *training* RSS is kept (:func:`best_rows`): the validation flight only scores.
 
 A candidate is significant when its held-out shrink over the reference is at least ``min_shrink`` % (the
 noise floor, 3 % by default) and at least :data:`SIG_SIGMA` of its own standard error (windows of the
@@ -85,9 +89,12 @@ def lr_test(rss_ref: float, rss: float, n_eff: float, dof: int) -> dict[str, flo
 
 def shrink_entries(
     names: list[str], outputs: tuple[str, ...], fit: Fit, gaps: np.ndarray, segs: np.ndarray, min_shrink: float,
+    shared: bool = False,
 ) -> list[dict[str, Any]]:
     """Ranking entries ``{effect, where, params, shrink_pct, shrink_se_pct, significant, tied_with, at_bound,
-    lr, theta, ...}``, best first (``theta``: the base parameters fitted with the effect).
+    lr, theta, nuisance, ...}``, best first (``theta``: the base parameters fitted with the effect;
+    ``nuisance``: the nuisance values fitted with it, by name, when ``shared``: the fits freed them in their
+    trailing columns, :func:`~jaxheli.gap.fit_effect.with_reference`).
 
     Row 0 of ``fit`` (training), ``gaps[C+1, k]`` and ``segs[C+1, S]`` (validation gaps and window energies)
     is the reference; row ``c + 1`` the candidate ``names[c]``.
@@ -109,6 +116,7 @@ def shrink_entries(
             offset += n
         if bound:
             sentence.append("on the physical bound: " + ", ".join(bound))
+        nuisance = _nuisance(value, outputs, params) if shared else {}
         shrink = 100.0 * (total_ref - float(np.mean(gaps[c]))) / total_ref
         se = _paired_se(seg_ref, segs[c], energy)
         d = np.log(seg_ref) - np.log(segs[c])
@@ -132,12 +140,21 @@ def shrink_entries(
             "summary": "; ".join(sentence),
             "converged": bool(fit.converged[c]),
             "theta": dict(zip(PARAM_NAMES, map(float, np.asarray(fit.theta[c])))),
+            "nuisance": nuisance,
         })
     for i, e in enumerate(out):
         e["tied_with"] = [o["effect"] for j, o in enumerate(out) if j != i and e["significant"] and o["significant"]
                           and abs(e["shrink_pct"] - o["shrink_pct"])
                           < TIE_SIGMA * _paired_se(segs[i + 1], segs[j + 1], energy)]
     return sorted(out, key=lambda e: -e["shrink_pct"])
+
+
+def _nuisance(value: np.ndarray, outputs: tuple[str, ...], params: dict[str, Any]) -> dict[str, float]:
+    """The nuisance parameters a row fitted in its trailing columns (:func:`~jaxheli.gap.fit_effect.with_reference`),
+    by name, but those among the effect's own ``params``."""
+    ps = fx.nuisance(outputs)
+    tail = np.asarray(value, np.float64)[len(value) - len(ps):]
+    return {p.name: float(v) for p, v in zip(ps, tail) if p.name not in params}
 
 
 def base_refit(
@@ -170,6 +187,7 @@ def base_refit(
         "settled": bool(fit.converged[0]) or progress < SETTLED_PCT,
         "steps": int(fit.steps[0]),
         "theta": dict(zip(PARAM_NAMES, map(float, np.asarray(fit.theta[0])))),
+        "nuisance": _nuisance(np.asarray(fit.z[0]), outputs, {}),
     }
 
 
@@ -272,12 +290,14 @@ def _evaluate(
         index, start, lower, upper, owner = fx.tried_arrays(names, outputs, shape=shape)
     if warm is not None:
         start[:, : len(warm)] = np.clip(warm, lower[:, : len(warm)], upper[:, : len(warm)])
-    cand = with_reference(index, start, lower, upper, len(no_effect(outputs)), fx.nuisance_arrays(outputs))
+    shared = box is not None
+    cand = with_reference(index, start, lower, upper, len(no_effect(outputs)),
+                          fx.nuisance_arrays(outputs) if shared else None)
     fit, gaps, segs, rss_start = fit_and_score(train, validate, theta, cand, max_steps, box, owner)
     labels = ["+".join(names)] if combine else list(names)
     n = len(labels) + 1
     ranking = shrink_entries(labels, outputs, jax.tree.map(lambda a: a[:n], fit), gaps[1:n + 1], segs[1:n + 1],
-                             min_shrink)
+                             min_shrink, shared)
     refit = base_refit(fit, gaps, segs, outputs, rss_start, min_shrink)
     return withhold(ranking, refit), refit
 
