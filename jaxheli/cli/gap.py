@@ -13,6 +13,7 @@ from ..gap.blind import KINDS, markdown, run_benchmark
 from ..gap.compare import localise_model, write_localisation
 from ..gap.consistency import MAX_TRAVEL_M, check, write_check
 from ..gap.diagnose import diagnose, ranking_table, write_diagnosis
+from ..gap.ranking import MIN_SHRINK
 from ..gap.prepare import prepare
 from ..model import G_SI
 from ._options import add_load_options, add_sim_options, finding_line, outputs, read_flight, sim_options
@@ -64,8 +65,8 @@ def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     p.add_argument("--top", type=int, default=3, help="significant effects fitted jointly (default 3)")
     p.add_argument("--g", type=float, default=G_SI, help="gravity, m/s^2 (default 9.81)")
     p.add_argument("--max-steps", type=int, default=40, help="Levenberg-Marquardt steps per candidate (default 40)")
-    p.add_argument("--min-shrink", type=float, default=3.0,
-                   help="smallest significant held-out shrink, %% (default 3: the blind check's noise floor)")
+    p.add_argument("--min-shrink", type=float, default=MIN_SHRINK,
+                   help="smallest significant held-out shrink, %% (default %(default)g: calibrated on effect-free flights with identified base models)")
     p.add_argument("--frozen-base", action="store_true",
                    help="hold the base model's parameters fixed while fitting each effect (default: re-identify them "
                         "jointly with it and credit it only beyond the base model re-fitted alone)")

@@ -37,7 +37,7 @@ from ..optim.pem import pem
 from ..synth.excitation import Excitation
 from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
 from .fit_effect import with_reference
-from .ranking import base_refit, fit_and_score, predictor_pair, shrink_entries, theta_box, withhold
+from .ranking import MIN_SHRINK, base_refit, fit_and_score, predictor_pair, shrink_entries, theta_box, withhold
 
 KINDS: tuple[str, ...] = fx.ALL + ("none",)
 """Effect kinds of the blind check: every candidate plus the effect-free control."""
@@ -145,7 +145,7 @@ def blind_flights(injection: Injection, seed: int, where: Scenario, *, duration:
 
 def run_trial(
     kind: str, seed: int, *, duration: float = 30.0, dt: float = 0.05, segment: float = 2.0, max_steps: int = 15,
-    pem_steps: int = 100, min_shrink: float = 3.0,
+    pem_steps: int = 100, min_shrink: float = MIN_SHRINK,
 ) -> dict[str, Any]:
     """One blind trial: scenario and injection of ``seed``, flights, PEM base model on the training flight,
     joint diagnosis and oracle; the record (verdict, attribution, magnitude error, shrinks, ranking)."""
@@ -161,7 +161,8 @@ def run_trial(
     arrays = [np.vstack([a, o]) for a, o in zip(arrays, oracle)]
     cand = with_reference(*arrays, pad=len(no_effect(outputs)), shared=fx.nuisance_arrays(outputs))
     fit, gaps, segs, rss_start = fit_and_score(train_pred, validate_pred, theta, cand, max_steps,
-                                               theta_box(theta, Bounds(*BOX)), np.r_[owner, len(fx.ALL)])
+                                               theta_box(theta, Bounds(*BOX)), np.r_[owner, len(fx.ALL)],
+                                               challenge=len(fx.ALL), min_shrink=min_shrink)
     n = len(fx.ALL) + 1
     ranking = shrink_entries(list(fx.ALL), outputs, jax.tree.map(lambda a: a[:n], fit), gaps[1:n + 1],
                              segs[1:n + 1], min_shrink, shared=True)
@@ -237,8 +238,8 @@ def _float64() -> None:
 
 DETECTABLE_PCT = 10.0
 """Oracle shrink (%) from which an injected effect counts as detectable: the identified base model with the
-true effect, fitted jointly, shrinks the held-out gap of the base re-fitted alone by at least this much, well
-above the 3 % significance floor. Below it the draw left the effect at the noise level of that flight (a bias
+true effect, fitted jointly, shrinks the held-out gap of the base re-fitted alone by at least this much (the
+default significance floor, :data:`~jaxheli.gap.ranking.MIN_SHRINK`). Below it the draw left the effect at the noise level of that flight (a bias
 the restarts absorb, a rotor coupling the collective hardly excites), and no diagnosis can attribute what the
 data do not show."""
 
