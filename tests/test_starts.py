@@ -71,3 +71,14 @@ def test_the_nuisance_filter_cut_is_freed_in_every_row_once():
     assert idx[noise, -1] == PAD and float(cand.upper[noise, -1]) == 0.0  # its own column frees it
     others = [r for r in range(1, idx.shape[0]) if r != noise]
     assert np.all(np.asarray(cand.start)[others, -1] == cut.start)
+
+
+def test_best_rows_break_near_ties_by_parsimony_not_by_noise():
+    owner = np.array([0, 0, 0])
+    rss = np.array([1.0, 109.42, 109.01, 150.0])  # reference, then three starts of one candidate
+    size = np.array([0.0, 0.2, 0.5, 0.0])
+    assert list(best_rows(rss, owner, size)) == [0, 1]  # within START_TIE_PCT of the least RSS: the smaller
+    far = rss.copy()
+    far[2] = 100.0  # clearly better fit: kept despite its size
+    assert list(best_rows(far, owner, size)) == [0, 2]
+    assert list(best_rows(rss, owner)) == [0, 2]  # without sizes: the least RSS

@@ -162,7 +162,7 @@ def run_trial(
     cand = with_reference(*arrays, pad=len(no_effect(outputs)), shared=fx.nuisance_arrays(outputs))
     fit, gaps, segs, rss_start = fit_and_score(train_pred, validate_pred, theta, cand, max_steps,
                                                theta_box(theta, Bounds(*BOX)), np.r_[owner, len(fx.ALL)],
-                                               challenge=len(fx.ALL), min_shrink=min_shrink)
+                                               challenge=len(fx.ALL))
     n = len(fx.ALL) + 1
     ranking = shrink_entries(list(fx.ALL), outputs, jax.tree.map(lambda a: a[:n], fit), gaps[1:n + 1],
                              segs[1:n + 1], min_shrink, shared=True)

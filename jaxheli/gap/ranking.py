@@ -235,7 +235,7 @@ _REFERENCE_ROUNDS = 3
 
 def fit_and_score(
     train: Predictor, validate: Predictor, theta: Float[ArrayLike, "40"], cand: Candidates, max_steps: int,
-    box: Bounds | None, owner: np.ndarray | None = None, challenge: int = 0, min_shrink: float = MIN_SHRINK,
+    box: Bounds | None, owner: np.ndarray | None = None, challenge: int = 0,
 ) -> tuple[Fit, np.ndarray, np.ndarray, float | None]:
     """Fit the rows of ``cand`` (row 0 the reference, :func:`~jaxheli.gap.fit_effect.with_reference`) on
     ``train`` and score them on ``validate``: ``(fit, gaps[1 + C, k], segs[1 + C, S], rss_start)``, the first
@@ -265,12 +265,15 @@ def fit_and_score(
     gaps, segs = (np.asarray(a) for a in score(validate, jnp.concatenate([given[None, :], fit.theta]),
                                                 jnp.concatenate([base[None, :], etas])))
     if owner is not None:
-        keep = best_rows(np.asarray(fit.rss), owner)
+        neutral = np.r_[np.asarray(base), 0.0][np.asarray(cand.index)]
+        size = np.sum(np.abs(np.asarray(fit.z) - neutral) / np.maximum(np.asarray(cand.upper - cand.lower), 1e-300),
+                      axis=1)
+        keep = best_rows(np.asarray(fit.rss), owner, size)
         fit, gaps, segs = jax.tree.map(lambda a: a[keep], fit), gaps[np.r_[0, keep + 1]], segs[np.r_[0, keep + 1]]
         cand = jax.tree.map(lambda a: a[keep], cand)
     if box is not None and challenge:
         fit, gaps, segs, rss_start = _challenge(train, validate, cand, fit, gaps, segs, rss_start,
-                                                _REFERENCE_STEPS * max_steps, box, challenge, min_shrink)
+                                                _REFERENCE_STEPS * max_steps, box, challenge)
     return fit, gaps, segs, rss_start
 
 
@@ -280,17 +283,18 @@ _CHALLENGERS = 3
 
 def _challenge(
     train: Predictor, validate: Predictor, cand: Candidates, fit: Fit, gaps: np.ndarray, segs: np.ndarray,
-    rss_start: float, steps: int, box: Bounds, rows: int, min_shrink: float,
+    rss_start: float, steps: int, box: Bounds, rows: int,
 ) -> tuple[Fit, np.ndarray, np.ndarray, float]:
     """The reference challenged by the candidates it would credit: the base model re-fitted alone (``steps``
     LM steps) from the base parameters (and nuisance values) of each of the up to :data:`_CHALLENGERS` of the
-    first ``rows`` candidates whose held-out shrink over it reaches ``min_shrink`` %, best first. A joint fit
+    first ``rows`` candidates that shrink the held-out gap most (any positive shrink: below the noise floor
+    too, their base parameters may have found the better basin). A joint fit
     can carry the base parameters into a better basin, and an effect is not paid for that: the re-fit of
     least training RSS, if below the reference's, replaces it (row 0 of ``fit``, row 1 of ``gaps``/``segs``;
     ``rss_start`` moves by the same gain, so :func:`base_refit`'s progress stays the reference's own)."""
     total = np.mean(gaps[1:], axis=1)
     shrink = 100.0 * (total[0] - total[1:rows + 1]) / total[0]
-    order = [c + 1 for c in np.argsort(-shrink) if shrink[c] >= min_shrink][:_CHALLENGERS]
+    order = [c + 1 for c in np.argsort(-shrink) if shrink[c] > 0][:_CHALLENGERS]
     base = jnp.asarray(no_effect(train.outputs))
     reference = jax.tree.map(lambda a: a[:1], cand)
     best = None
@@ -318,12 +322,24 @@ def _carry_reference(cand: Candidates, z: Float[ArrayLike, "K"], row: int = 0) -
     return dataclasses.replace(cand, start=start)
 
 
-def best_rows(rss: Float[np.ndarray, "R"], owner: np.ndarray) -> np.ndarray:
+def best_rows(rss: Float[np.ndarray, "R"], owner: np.ndarray, size: Float[np.ndarray, "R"] | None = None) -> np.ndarray:
     """Rows of a batched fit to keep: the reference (row 0), then for each candidate ``c`` the row among those
-    ``owner`` gives it (``owner[r - 1]``, rows after the reference) of least training RSS ``rss``."""
+    ``owner`` gives it (``owner[r - 1]``, rows after the reference) of least training RSS ``rss``; with
+    ``size`` (each row's fitted distance from no effect), the smallest among the rows within
+    :data:`START_TIE_PCT` of that least RSS: starts that fit equally well are told apart by parsimony, not by
+    the noise in their RSS (a spurious 40 ms collective delay beside the real lon one)."""
     rss, owner = np.asarray(rss)[1:], np.asarray(owner)
-    return np.array([0] + [1 + int(np.flatnonzero(owner == c)[np.argmin(rss[owner == c])])
-                           for c in range(int(owner.max()) + 1)])
+    size = rss if size is None else np.asarray(size)[1:]
+    keep = [0]
+    for c in range(int(owner.max()) + 1):
+        rows = np.flatnonzero(owner == c)
+        near = rows[rss[rows] <= np.min(rss[rows]) * (1.0 + START_TIE_PCT / 100.0)]
+        keep.append(1 + int(near[np.argmin(size[near])]))
+    return np.array(keep)
+
+
+START_TIE_PCT = 0.5
+"""Training-RSS difference (%) within which two starts of one candidate fit equally well (:func:`best_rows`)."""
 
 
 def _evaluate(
@@ -344,7 +360,7 @@ def _evaluate(
     cand = with_reference(index, start, lower, upper, len(no_effect(outputs)),
                           fx.nuisance_arrays(outputs) if shared else None)
     fit, gaps, segs, rss_start = fit_and_score(train, validate, theta, cand, max_steps, box, owner,
-                                               challenge=1 if combine else len(names), min_shrink=min_shrink)
+                                               challenge=1 if combine else len(names))
     labels = ["+".join(names)] if combine else list(names)
     n = len(labels) + 1
     ranking = shrink_entries(labels, outputs, jax.tree.map(lambda a: a[:n], fit), gaps[1:n + 1], segs[1:n + 1],
