@@ -42,7 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.stats
 
-from .._types import ArrayLike, Float
+from .._types import Array, ArrayLike, Float
 from ..bounds import Bounds
 from ..data.flight import FlightData
 from ..problem import Problem
@@ -251,15 +251,9 @@ def fit_and_score(
     given = jnp.asarray(theta)
     start_theta, rss_start = given, None
     if box is not None:
-        reference = jax.tree.map(lambda a: a[:1], cand)
-        for _ in range(_REFERENCE_ROUNDS):
-            first = fit_candidates(train, start_theta, base, reference, _REFERENCE_STEPS * max_steps, box)
-            settled = rss_start is not None and 100.0 * (rss_start - float(first.rss[0])) < SETTLED_PCT * rss_start
-            start_theta, rss_start = first.theta[0], float(first.rss[0])
-            reference = dataclasses.replace(reference, start=first.z)
-            if settled or bool(first.converged[0]):
-                break
-        cand = _carry_reference(cand, reference.start[0])
+        first = _refit_alone(train, given, jax.tree.map(lambda a: a[:1], cand), _REFERENCE_STEPS * max_steps, box)
+        start_theta, rss_start = first.theta[0], float(first.rss[0])
+        cand = _carry_reference(cand, first.z[0])
     fit = fit_candidates(train, start_theta, base, cand, max_steps, box)
     etas = jax.vmap(lambda i, z: embed(base, i, z))(cand.index, fit.z)
     gaps, segs = (np.asarray(a) for a in score(validate, jnp.concatenate([given[None, :], fit.theta]),
@@ -300,7 +294,7 @@ def _challenge(
     best = None
     for c in order:
         start = _carry_reference(dataclasses.replace(cand, start=fit.z), fit.z[c], row=c).start[:1]
-        trial = fit_candidates(train, fit.theta[c], base, dataclasses.replace(reference, start=start), steps, box)
+        trial = _refit_alone(train, fit.theta[c], dataclasses.replace(reference, start=start), steps, box)
         if float(trial.rss[0]) < float(fit.rss[0] if best is None else best.rss[0]):
             best = trial
     if best is None:
@@ -311,6 +305,22 @@ def _challenge(
     gaps, segs = gaps.copy(), segs.copy()
     gaps[1], segs[1] = g[0], e[0]
     return fit, gaps, segs, rss_start - gain
+
+
+def _refit_alone(train: Predictor, theta: Float[Array, "40"], reference: Candidates, steps: int, box: Bounds) -> Fit:
+    """The base model fitted alone (``reference``: one row) from ``theta`` in up to :data:`_REFERENCE_ROUNDS`
+    rounds of ``steps`` LM steps, each from the last; it stops once a round lowers the training RSS by less
+    than :data:`SETTLED_PCT` or the solver converges."""
+    base = jnp.asarray(no_effect(train.outputs))
+    fit = None
+    for _ in range(_REFERENCE_ROUNDS):
+        last = fit
+        fit = fit_candidates(train, theta, base, reference, steps, box)
+        theta, reference = fit.theta[0], dataclasses.replace(reference, start=fit.z)
+        if bool(fit.converged[0]) or (last is not None and 100.0 * float(last.rss[0] - fit.rss[0])
+                                      < SETTLED_PCT * float(last.rss[0])):
+            break
+    return fit
 
 
 def _carry_reference(cand: Candidates, z: Float[ArrayLike, "K"], row: int = 0) -> Candidates:
