@@ -150,13 +150,13 @@ PROCESS_NOISE = Effect(
     terms=(),
     inject=_inject_gusts,
 )
-"""First-order Gauss-Markov wind on u, v, w: std (m/s, plausible up to 5), correlation time (s, up to 10;
-1 s at no effect) and a cut ``c`` of the restart filter's white state noise (``track`` to ``track e^-|c|``,
-``|c|`` up to 10: the filter-error method estimates the whole process-noise model; once the gusts explain the
-wind, the filter need not follow the sensors as closely as at the base model's tuned level). The cut is a
-nuisance: every fit frees it, so the effect is credited for the gusts alone, not for re-tuning the filter. No plant term:
-the wind enters every plant through ``E``; :func:`jaxheli.gap.kalman.gust_filter` reads this group.
-Injected: a flight in gusts of 0.3-0.8 m/s with 0.5-2 s correlation."""
+"""First-order Gauss-Markov wind on u, v, w: std (m/s, plausible up to 5), correlation time (s, up to 10; 1 s at no
+effect) and a cut ``c`` of the restart filter's white state noise (``track`` to ``track e^-|c|``, ``|c|`` up to 10:
+the filter-error method estimates the whole process-noise model; once the gusts explain the wind, the filter need
+not follow the sensors as closely as at the base model's tuned level). The cut is a nuisance: every fit frees it, so
+the effect is credited for the gusts alone, not for re-tuning the filter. No plant term: the wind enters every plant
+through ``E``; :func:`jaxheli.gap.kalman.gust_filter` reads this group. Injected: a flight in gusts of 0.3-0.8 m/s
+with 0.5-2 s correlation."""
 
 
 def _drag_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
@@ -198,9 +198,9 @@ def _saturate(plant: PlantView, state: None, sticks: Float[Array, "4"], servo: F
 CONTROL_SATURATION = _per_axis("control_saturation", "sat", eta_order=2, unit="1/stick^2", start=1.0,
                                bound=100.0, term=Term("command", _saturate),
                                value=lambda rng: rng.uniform(0.15, 0.3) ** -2, tries=(25.0,), together=True)
-"""Saturation of the delayed sticks per axis (1/stick^2, plausible up to 100: a limit no tighter than 0.1 of
-full stick; further starts at 25, a limit at 0.2 stick, on all axes and on each). Injected: a limit at 0.15-0.3 stick on one random
-axis."""
+"""Saturation of the delayed sticks per axis (1/stick^2, plausible up to 100: a limit no tighter than 0.1 of full
+stick; further starts at 25, a limit at 0.2 stick, on all axes and on each). Injected: a limit at 0.15-0.3 stick on
+one random axis."""
 
 
 def _rotor_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:

@@ -54,13 +54,13 @@ SENSOR: tuple[str, ...] = ("mounting", "reading")
 
 @dataclasses.dataclass(frozen=True)
 class Param:
-    """One effect parameter: ``eta[slot]``; ``positive`` ones act through ``|eta|`` and are reported so;
-    ``bound`` is the largest physically plausible magnitude (units of ``unit``); a ``shape`` parameter (a
-    time constant) only shapes an effect whose size the others set, so it is never evidence of it; ``tries``
-    are further start values, typical sizes of the effect from which a fit reaches a large one that it stops
-    short of from ``start`` (:func:`jaxheli.effects.registry.start_rows`), each parameter alone and, with
-    ``together``, all such parameters of the effect at once too; a ``nuisance`` parameter is a
-    setting of the predictor rather than of the plant, freed in every fit (:func:`jaxheli.effects.registry.nuisance_arrays`)."""
+    """One effect parameter: ``eta[slot]``; ``positive`` ones act through ``|eta|`` and are reported so; ``bound``
+    is the largest physically plausible magnitude (units of ``unit``); a ``shape`` parameter (a time constant) only
+    shapes an effect whose size the others set, so it is never evidence of it; ``tries`` are further start values,
+    typical sizes of the effect from which a fit reaches a large one that it stops short of from ``start``
+    (:func:`jaxheli.effects.registry.start_rows`), each parameter alone and, with ``together``, all such parameters
+    of the effect at once too; a ``nuisance`` parameter is a setting of the predictor rather than of the plant,
+    freed in every fit (:func:`jaxheli.effects.registry.nuisance_arrays`)."""
 
     slot: int
     name: str

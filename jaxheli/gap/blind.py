@@ -237,11 +237,11 @@ def _float64() -> None:
 
 
 DETECTABLE_PCT = 10.0
-"""Oracle shrink (%) from which an injected effect counts as detectable: the identified base model with the
-true effect, fitted jointly, shrinks the held-out gap of the base re-fitted alone by at least this much (the
-default significance floor, :data:`~jaxheli.gap.ranking.MIN_SHRINK`). Below it the draw left the effect at the noise level of that flight (a bias
-the restarts absorb, a rotor coupling the collective hardly excites), and no diagnosis can attribute what the
-data do not show."""
+"""Oracle shrink (%) from which an injected effect counts as detectable: the identified base model with the true
+effect, fitted jointly, shrinks the held-out gap of the base re-fitted alone by at least this much (the default
+significance floor, :data:`~jaxheli.gap.ranking.MIN_SHRINK`). Below it the draw left the effect at the noise level
+of that flight (a bias the restarts absorb, a rotor coupling the collective hardly excites), and no diagnosis can
+attribute what the data do not show."""
 
 
 def _pct(flags: list[bool]) -> float | None:

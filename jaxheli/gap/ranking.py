@@ -1,27 +1,27 @@
 """Rank candidate effects by how far each shrinks the held-out gap, with a noise floor for significance.
 
-Parsimony is validation-only scoring: every candidate is fitted on the training flight and scored on the
-validation flight, so extra parameters earn nothing unless they predict new data. By default each candidate
-is fitted *jointly* with the 40 base parameters (:func:`~jaxheli.gap.fit_effect.fit_candidates`), the way a
-user re-identifies a model, and credited only against the **reference**: the base model re-fitted alone by
-the same solver, budget and start. Fitting an effect on top of a frozen, under-fitted base pays the effect
-for whatever misfit its extra freedom soaks up; the reference absorbs that first. The reference's own
-held-out shrink of the given base is reported (:func:`base_refit`): beyond the noise, the base model is
-under-fitted and the verdict says so before any effect; while the re-fitted base is still converging
-(:data:`SETTLED_PCT`), no effect is credited at all. Re-identified jointly, every fit, the reference's included, also frees the
-nuisance parameters (:func:`~jaxheli.effects.registry.nuisance`: the restart filter's level), so no candidate
-is paid for re-tuning the predictor. An effect whose size a fit from one start stops short of (a tight
-saturation, a long lag) is fitted from further starts too (:func:`~jaxheli.effects.registry.start_rows`), and
-the start of least *training* RSS is kept (:func:`best_rows`): the validation flight only scores. A joint fit
-can also carry the base parameters into a better basin; the reference is then re-fitted from the candidates'
-base parameters (:func:`_challenge`), so that an effect is not paid for the escape.
+Parsimony is validation-only scoring: every candidate is fitted on the training flight and scored on the validation
+flight, so extra parameters earn nothing unless they predict new data. By default each candidate is fitted *jointly*
+with the 40 base parameters (:func:`~jaxheli.gap.fit_effect.fit_candidates`), the way a user re-identifies a model,
+and credited only against the **reference**: the base model re-fitted alone by the same solver, budget and start.
+Fitting an effect on top of a frozen, under-fitted base pays the effect for whatever misfit its extra freedom soaks
+up; the reference absorbs that first. The reference's own held-out shrink of the given base is reported
+(:func:`base_refit`): beyond the noise, the base model is under-fitted and the verdict says so before any effect;
+while the re-fitted base is still converging (:data:`SETTLED_PCT`), no effect is credited at all. Re-identified
+jointly, every fit, the reference's included, also frees the nuisance parameters
+(:func:`~jaxheli.effects.registry.nuisance`: the restart filter's level), so no candidate is paid for re-tuning the
+predictor. An effect whose size a fit from one start stops short of (a tight saturation, a long lag) is fitted from
+further starts too (:func:`~jaxheli.effects.registry.start_rows`), and the start of least *training* RSS is kept
+(:func:`best_rows`): the validation flight only scores. A joint fit can also carry the base parameters into a better
+basin; the reference is then re-fitted from the candidates' base parameters (:func:`_challenge`), so that an effect
+is not paid for the escape.
 
-A candidate is significant when its held-out shrink over the reference is at least ``min_shrink`` % (the
-noise floor, :data:`MIN_SHRINK` by default) and at least :data:`SIG_SIGMA` of its own standard error (windows of the
-validation flight paired, :func:`_paired_se`) unless it is :data:`LARGE_SHRINK` or more; when no fitted parameter sits on its physical bound
-(:func:`jaxheli.effects.registry.at_bound`: a 0.5 s "input delay" has absorbed something else); and when its
-fitted size lies :data:`MIN_Z` standard errors or more from no effect. Two significant candidates whose
-shrinks differ by less than :data:`TIE_SIGMA` standard errors of their paired difference are a tie
+A candidate is significant when its held-out shrink over the reference is at least ``min_shrink`` % (the noise
+floor, :data:`MIN_SHRINK` by default) and at least :data:`SIG_SIGMA` of its own standard error (windows of the
+validation flight paired, :func:`_paired_se`) unless it is :data:`LARGE_SHRINK` or more; when no fitted parameter
+sits on its physical bound (:func:`jaxheli.effects.registry.at_bound`: a 0.5 s "input delay" has absorbed something
+else); and when its fitted size lies :data:`MIN_Z` standard errors or more from no effect. Two significant
+candidates whose shrinks differ by less than :data:`TIE_SIGMA` standard errors of their paired difference are a tie
 (``tied_with``; e.g. a delay and a first-order lag at low frequency): the verdict names the set.
 
 Beside the held-out shrink each entry carries a likelihood-ratio test on the training flight (``lr``:
@@ -279,13 +279,13 @@ def _challenge(
     train: Predictor, validate: Predictor, cand: Candidates, fit: Fit, gaps: np.ndarray, segs: np.ndarray,
     rss_start: float, steps: int, box: Bounds, rows: int,
 ) -> tuple[Fit, np.ndarray, np.ndarray, float]:
-    """The reference challenged by the candidates it would credit: the base model re-fitted alone (``steps``
-    LM steps) from the base parameters (and nuisance values) of each of the up to :data:`_CHALLENGERS` of the
-    first ``rows`` candidates that shrink the held-out gap most (any positive shrink: below the noise floor
-    too, their base parameters may have found the better basin). A joint fit
-    can carry the base parameters into a better basin, and an effect is not paid for that: the re-fit of
-    least training RSS, if below the reference's, replaces it (row 0 of ``fit``, row 1 of ``gaps``/``segs``;
-    ``rss_start`` moves by the same gain, so :func:`base_refit`'s progress stays the reference's own)."""
+    """The reference challenged by the candidates it would credit: the base model re-fitted alone (``steps`` LM
+    steps) from the base parameters (and nuisance values) of each of the up to :data:`_CHALLENGERS` of the first
+    ``rows`` candidates that shrink the held-out gap most (any positive shrink: below the noise floor too, their
+    base parameters may have found the better basin). A joint fit can carry the base parameters into a better basin,
+    and an effect is not paid for that: the re-fit of least training RSS, if below the reference's, replaces it (row
+    0 of ``fit``, row 1 of ``gaps``/``segs``; ``rss_start`` moves by the same gain, so :func:`base_refit`'s progress
+    stays the reference's own)."""
     total = np.mean(gaps[1:], axis=1)
     shrink = 100.0 * (total[0] - total[1:rows + 1]) / total[0]
     order = [c + 1 for c in np.argsort(-shrink) if shrink[c] > 0][:_CHALLENGERS]
