@@ -1,5 +1,9 @@
 """Blind check: injections drawn as documented, scoring arithmetic, and a small blind run end to end."""
 
+import subprocess
+import sys
+import time
+
 import numpy as np
 import pytest
 
@@ -99,3 +103,28 @@ def test_small_blind_run_attributes_saturation_and_clears_control():
     assert saturation["magnitude_error"] < 0.25 and saturation["oracle_shrink_pct"] > 10
     assert control["top"] == "none" and control["correct"]
     assert all(len(r["ranking"]) == 8 for r in records)
+
+
+def _exited(pid: int) -> bool:
+    """``pid`` is gone or a zombie (ended, not yet reaped)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] == "Z"
+    except FileNotFoundError:
+        return True
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_trial_worker_outlives_no_run_that_spawned_it():
+    """A worker watching its run (``_exit_with``) stays while the run lives and ends once it is gone."""
+    worker = "import sys; from jaxheli.gap.blind import _exit_with; _exit_with(int(sys.argv[1]), 0.1)"
+    run = ("import os, subprocess, sys, time; "
+           f"w = subprocess.Popen([sys.executable, '-c', {worker!r}, str(os.getpid())]); "
+           "time.sleep(8); print(w.pid, w.poll() is None)")
+    out = subprocess.run([sys.executable, "-c", run], capture_output=True, text=True, check=True, timeout=120)
+    pid, alive = out.stdout.split()
+    assert alive == "True"
+    deadline = time.monotonic() + 30
+    while not _exited(int(pid)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _exited(int(pid))

@@ -17,6 +17,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import multiprocessing
+import os
+import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -223,7 +225,8 @@ def run_blind(
             bar.update()
     else:
         context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(workers, mp_context=context, initializer=_float64) as pool:
+        with ProcessPoolExecutor(workers, mp_context=context, initializer=_worker,
+                                 initargs=(os.getpid(),)) as pool:
             jobs = {pool.submit(run_trial, kind, seed, **options): i for i, (kind, seed) in enumerate(trials)}
             for job in as_completed(jobs):
                 finished(jobs[job], job.result())
@@ -232,8 +235,19 @@ def run_blind(
     return [done[i] for i in range(len(trials))]
 
 
-def _float64() -> None:
+def _worker(parent: int) -> None:
+    """A trial process's set-up: float64, and an exit once ``parent``, the run that spawned it, is gone
+    (:func:`_exit_with`)."""
     jax.config.update("jax_enable_x64", True)
+    threading.Thread(target=_exit_with, args=(parent,), daemon=True).start()
+
+
+def _exit_with(parent: int, poll: float = 2.0) -> None:
+    """End this process once its parent ``parent`` has ended (checked every ``poll`` s): a run stopped by a signal
+    leaves no orphaned worker behind to finish its trial on cores nobody reads it from."""
+    while os.getppid() == parent:
+        time.sleep(poll)
+    os._exit(1)
 
 
 DETECTABLE_PCT = 10.0

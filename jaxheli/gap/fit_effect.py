@@ -2,7 +2,10 @@
 solver, :func:`jaxheli.optim.pem.least_squares_solver`; ``lax.map``, not ``vmap``: vmapped, the solves, each
 a loop over forward-mode scans, deadlocked XLA CPU's runtime with every thread waiting, for the nine fits of
 ``tests/test_diagnose.py``'s clean-flight diagnosis in a plain process and for 23 fits under the test suite's
-XLA flags; mapped, neither hangs).
+XLA flags; mapped, neither hangs). The solve compiles with :data:`jaxheli._xla.QUICK_COMPILE`: it runs a few
+times per process, so compiling is most of its cost (blind trial on a 2-core CPU: the reference's 60-step fit
+compiled in 14 s instead of 77 s, the 27-row 15-step fit in 24 s instead of 66 s; the latter then ran in 10.8 s
+instead of 9.1 s).
 
 Every candidate frees ``K`` entries of ``eta`` (``index[C, K]``, padded with a dummy slot), each in its
 physical box (:func:`jaxheli.effects.registry.box`), started at the effect's start values. With the base
@@ -29,6 +32,7 @@ import numpy as np
 import optimistix as optx
 
 from .._types import Array, Float, Int
+from .._xla import QUICK_COMPILE
 from ..bounds import Bounds
 from ..cost import nmse
 from ..model import N_PARAMS
@@ -84,7 +88,7 @@ class Fit(eqx.Module):
     converged: Array
 
 
-@eqx.filter_jit
+@eqx.filter_jit(compiler_options=QUICK_COMPILE)
 def fit_candidates(
     pred: Predictor,
     theta: Float[Array, "40"],
