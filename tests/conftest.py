@@ -10,6 +10,12 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
     # both cores only slows the other one down (the walkthrough notebook's kernel gets the same setting).
     _FLAGS.append("--xla_cpu_multi_thread_eigen=false")
 os.environ["XLA_FLAGS"] = " ".join([os.environ.get("XLA_FLAGS", ""), *_FLAGS]).strip()
+_CORES = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_setaffinity") else []
+if os.environ.get("PYTEST_XDIST_WORKER") and int(os.environ["PYTEST_XDIST_WORKER_COUNT"]) <= len(_CORES):
+    # ...and its own core, before JAX is imported (XLA sizes its spinning thread pools on import to the cores it
+    # may use, jaxheli/_affinity.py): the two workers of `-n 2` sharing two cores ran the joint-diagnosis tests
+    # 2-5x slower than one pytest on one core. The notebook's kernel and any subprocess inherit the core.
+    os.sched_setaffinity(0, {_CORES[int(os.environ["PYTEST_XDIST_WORKER"].removeprefix("gw"))]})
 
 import gc  # noqa: E402
 

@@ -1,5 +1,6 @@
 """Blind check: injections drawn as documented, scoring arithmetic, and a small blind run end to end."""
 
+import os
 import subprocess
 import sys
 import time
@@ -7,10 +8,11 @@ import time
 import numpy as np
 import pytest
 
+from jaxheli._affinity import cores
 from jaxheli.effects import plant as augmented
 from jaxheli.gap.blind import (
-    BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, blind_flights, markdown, run_blind, sample_injection, scenario,
-    summarise,
+    BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, _process_on, _worker_cores, blind_flights, markdown, run_blind,
+    sample_injection, scenario, summarise,
 )
 from jaxheli.model import R50_SI, TABLE2
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS
@@ -128,3 +130,24 @@ def test_a_trial_worker_outlives_no_run_that_spawned_it():
     while not _exited(int(pid)) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert _exited(int(pid))
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="no sched_setaffinity on this platform")
+def test_each_trial_process_starts_on_a_core_of_its_own():
+    """Trial processes are started on their core (before they import JAX), the run's own thread gets its cores
+    back, and more workers than cores are not pinned."""
+    before = os.sched_getaffinity(0)
+    try:
+        try:
+            os.sched_setaffinity(0, range(os.cpu_count() or 1))  # an xdist worker is pinned already: widen it
+        except OSError:
+            pass
+        usable = cores()
+        if len(usable) < 2:
+            pytest.skip("one core")
+        assert _worker_cores(len(usable)) == usable and _worker_cores(len(usable) + 1) == [None] * (len(usable) + 1)
+        with _process_on(usable[-1]) as pool:
+            assert pool.submit(os.sched_getaffinity, 0).result() == {usable[-1]}
+            assert os.sched_getaffinity(0) == set(usable)
+    finally:
+        os.sched_setaffinity(0, before)

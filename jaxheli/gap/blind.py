@@ -14,6 +14,7 @@ compiled solve, mapped over them.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import multiprocessing
@@ -21,7 +22,7 @@ import os
 import threading
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +30,7 @@ import jax
 import numpy as np
 from tqdm.auto import tqdm
 
+from .._affinity import cores, on_core
 from ..bounds import Bounds
 from ..data.flight import FlightData
 from ..effects import registry as fx
@@ -209,7 +211,7 @@ def run_blind(
 ) -> list[dict[str, Any]]:
     """Diagnose each ``(kind, seed)`` trial blind (:func:`run_trial` with ``options``); one record per trial, in
     the order of ``trials``. ``workers > 1`` runs trials in that many processes (each a trial at a time, in
-    float64). A progress bar advances per trial and ``on_trial(records_so_far)`` runs after each, e.g. to save
+    float64, each started on a core of its own when the machine has that many, :func:`_worker_cores`). A progress bar advances per trial and ``on_trial(records_so_far)`` runs after each, e.g. to save
     (records finished so far, in the order of ``trials``)."""
     done: dict[int, dict[str, Any]] = {}
 
@@ -224,15 +226,43 @@ def run_blind(
             finished(i, run_trial(kind, seed, **options))
             bar.update()
     else:
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(workers, mp_context=context, initializer=_worker,
-                                 initargs=(os.getpid(),)) as pool:
-            jobs = {pool.submit(run_trial, kind, seed, **options): i for i, (kind, seed) in enumerate(trials)}
-            for job in as_completed(jobs):
-                finished(jobs[job], job.result())
-                bar.update()
+        todo = iter(enumerate(trials))
+        running: dict[Future, tuple[int, ProcessPoolExecutor]] = {}
+
+        def feed(pool: ProcessPoolExecutor) -> None:
+            for i, (kind, seed) in todo:
+                running[pool.submit(run_trial, kind, seed, **options)] = (i, pool)
+                return
+
+        with contextlib.ExitStack() as stack:
+            for core in _worker_cores(workers):
+                feed(stack.enter_context(_process_on(core)))
+            while running:
+                for job in wait(running, return_when=FIRST_COMPLETED)[0]:
+                    i, pool = running.pop(job)
+                    finished(i, job.result())
+                    bar.update()
+                    feed(pool)
     bar.close()
     return [done[i] for i in range(len(trials))]
+
+
+def _worker_cores(workers: int) -> list[int | None]:
+    """A core for each of ``workers`` trial processes, or ``None`` for each (not pinned) when the machine has fewer
+    cores than that: on a 2-core CPU two unpinned JAX processes run about 3x slower than one (see
+    :mod:`jaxheli._affinity`)."""
+    usable = cores()
+    return usable[:workers] if len(usable) >= workers else [None] * workers
+
+
+def _process_on(core: int | None) -> ProcessPoolExecutor:
+    """A one-process pool whose process is started (spawned) on ``core`` (:func:`~jaxheli._affinity.on_core`)
+    before it imports JAX, in float64, watching this run (:func:`_worker`)."""
+    context = multiprocessing.get_context("spawn")
+    with on_core(core):
+        pool = ProcessPoolExecutor(1, mp_context=context, initializer=_worker, initargs=(os.getpid(),))
+        pool.submit(int).result()
+    return pool
 
 
 def _worker(parent: int) -> None:
