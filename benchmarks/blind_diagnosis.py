@@ -6,7 +6,7 @@ scenario`). Writes ``OUT/blind.json`` (per-trial records and the summary) and ``
 top-1 and in-tie-set %, detectable trials, median magnitude error, median shrink vs the oracle; false-positive
 %), both after every trial. Usage::
 
-    python benchmarks/blind_diagnosis.py [--seeds 20] [--kinds input_delay none ...] [--pem-steps 100] [--workers 1] [--out results/blind]
+    python benchmarks/blind_diagnosis.py [--seeds 20] [--kinds input_delay none ...] [--pem-steps 100] [--workers 2] [--out results/blind]
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ from jaxheli.gap.kalman import gust_filter, riccati
 from jaxheli.cost import nmse
 from jaxheli.gap.predictor import TRACKS, make_predictor, noise_variance, tune_track
 from jaxheli.gap.fit_effect import Fit
-from jaxheli.gap.ranking import SIG_SIGMA, TIE_SIGMA, lr_test, rank_effects, shrink_entries, verdict
+from jaxheli.gap.ranking import SIG_SIGMA, TIE_SIGMA, lr_test, rank_effects, shrink_entries, verdict, yardstick
 from jaxheli.model import TABLE2
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS, piloted_flight
 from filtered_restart import reference_prediction
@@ -255,6 +255,31 @@ def test_a_shrink_from_parameters_within_noise_of_no_effect_is_not_significant()
     assert weak["shrink_pct"] > strong["shrink_pct"] > 3.0
     assert strong["significant"] and not weak["significant"] and strong["evidence_z"] == pytest.approx(16.0)
     assert verdict([weak, strong]).startswith("input_delay (lat input delay delay 80 +- 5 ms)")
+
+
+def test_candidates_are_credited_beyond_the_better_model_without_an_effect():
+    """A re-fit of the base alone that predicts the validation flight worse than the given base (it over-fitted
+    the training flight) is no yardstick: a candidate that merely stays near the given base gains nothing. A re-fit
+    that predicts better stays the yardstick."""
+    rng = np.random.default_rng(0)
+    gaps = np.stack([np.full(len(OUT), 0.2), np.full(len(OUT), 0.5), np.full(len(OUT), 0.19)])  # given, re-fit, delay
+    segs = rng.uniform(1.0, 2.0, (3, 6))
+    z = np.zeros((1, 2 * len(OUT)))
+    z[0, 0] = 0.08
+    fit = _fit(z, np.full_like(z, 0.005))
+    credit_gaps, credit_segs = yardstick(gaps, segs)
+    np.testing.assert_array_equal(credit_gaps[[0, 1, 2]], gaps[[0, 0, 2]])
+    np.testing.assert_array_equal(credit_segs[[0, 1, 2]], segs[[0, 0, 2]])
+    assert gaps[1, 0] == 0.5  # the arrays given are left as they were
+    (credited,) = shrink_entries(["input_delay"], OUT, fit, credit_gaps[1:], credit_segs[1:], 10.0)
+    (against_refit,) = shrink_entries(["input_delay"], OUT, fit, gaps[1:], segs[1:], 10.0)
+    assert credited["shrink_pct"] == pytest.approx(5.0) and not credited["significant"]
+    assert credited["gap_base"] == pytest.approx(0.2)
+    assert against_refit["shrink_pct"] == pytest.approx(62.0) and against_refit["significant"]
+    better = gaps.copy()
+    better[1] = 0.1
+    for kept, given in zip(yardstick(better, segs), (better, segs)):
+        np.testing.assert_array_equal(kept, given)
 
 
 def _windows(rng, base, shrinks, noise):

@@ -6,7 +6,8 @@ training and a held-out validation flight of the truth plant carrying it (differ
 independent noise) and diagnoses them without being told which. The base model is what a user would have:
 identified by PEM on the contaminated training flight (never the truth), in one box that covers both
 helicopter classes (:data:`BOX`). The diagnosis is the library's default: every candidate fitted jointly
-with the base parameters, credited beyond the base re-fitted alone (:func:`~jaxheli.gap.ranking.fit_and_score`).
+with the base parameters, credited beyond the base re-fitted alone (:func:`~jaxheli.gap.ranking.fit_and_score`) or the given base, whichever
+predicts the validation flight better (:func:`~jaxheli.gap.ranking.yardstick`).
 The oracle is the identified base with the *true* effect, started at its true values and fitted jointly the
 same way. All trials of a run share the flight length, so each fit compiles once; candidates are fitted in one
 compiled solve, mapped over them.
@@ -41,7 +42,9 @@ from ..optim.pem import pem
 from ..synth.excitation import Excitation
 from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
 from .fit_effect import with_reference
-from .ranking import MIN_SHRINK, base_refit, fit_and_score, predictor_pair, shrink_entries, theta_box, withhold
+from .ranking import (
+    MIN_SHRINK, base_refit, fit_and_score, predictor_pair, shrink_entries, theta_box, withhold, yardstick,
+)
 
 KINDS: tuple[str, ...] = fx.ALL + ("none",)
 """Effect kinds of the blind check: every candidate plus the effect-free control."""
@@ -168,8 +171,9 @@ def run_trial(
                                                theta_box(theta, Bounds(*BOX)), np.r_[owner, len(fx.ALL)],
                                                challenge=len(fx.ALL))
     n = len(fx.ALL) + 1
-    ranking = shrink_entries(list(fx.ALL), outputs, jax.tree.map(lambda a: a[:n], fit), gaps[1:n + 1],
-                             segs[1:n + 1], min_shrink, shared=True)
+    credit_gaps, credit_segs = yardstick(gaps, segs)
+    ranking = shrink_entries(list(fx.ALL), outputs, jax.tree.map(lambda a: a[:n], fit), credit_gaps[1:n + 1],
+                             credit_segs[1:n + 1], min_shrink, shared=True)
     refit = base_refit(fit, gaps, segs, outputs, rss_start, min_shrink)
     ranking = [{k: v for k, v in e.items() if k != "theta"} for e in withhold(ranking, refit)]
     best = next((e for e in ranking if e["significant"]), None)
@@ -178,7 +182,7 @@ def run_trial(
               "strength": where.strength, "top": top, "correct": top == kind,
               "in_tie": top == kind or (best is not None and kind in best["tied_with"]),
               "true_value": inj.value, "primary": inj.primary,
-              "oracle_shrink_pct": 100.0 * (1.0 - float(np.mean(gaps[-1]) / np.mean(gaps[1]))),
+              "oracle_shrink_pct": 100.0 * (1.0 - float(np.mean(gaps[-1]) / np.mean(credit_gaps[1]))),
               "base": {"method": "pem", "steps": ident.n_steps, "success": ident.success, "rss": ident.rss},
               "base_refit": {k: v for k, v in refit.items() if k != "theta"}, "track": float(train_pred.track),
               "ranking": ranking}
@@ -282,7 +286,8 @@ def _exit_with(parent: int, poll: float = 2.0) -> None:
 
 DETECTABLE_PCT = 10.0
 """Oracle shrink (%) from which an injected effect counts as detectable: the identified base model with the true
-effect, fitted jointly, shrinks the held-out gap of the base re-fitted alone by at least this much (the default
+effect, fitted jointly, shrinks the held-out gap of the better model without an effect
+(:func:`~jaxheli.gap.ranking.yardstick`) by at least this much (the default
 significance floor, :data:`~jaxheli.gap.ranking.MIN_SHRINK`). Below it the draw left the effect at the noise level
 of that flight (a bias the restarts absorb, a rotor coupling the collective hardly excites), and no diagnosis can
 attribute what the data do not show."""
