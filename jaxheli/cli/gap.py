@@ -91,7 +91,8 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     p.add_argument("--max-steps", type=int, default=15, help="LM steps per candidate fit (default 15)")
     p.add_argument("--pem-steps", type=int, default=100,
                    help="PEM steps identifying each trial's base model on its training flight (default 100)")
-    p.add_argument("--workers", type=int, default=1, help="trials run in parallel processes, each on a core of its own (default 1)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="trials run in parallel processes, each on a core of its own (default 1)")
     p.add_argument("--out", default="jaxheli-blind", help="output folder (blind.json, blind.md)")
     p.set_defaults(func=_cmd_blind)
     return p

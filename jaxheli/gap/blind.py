@@ -6,8 +6,8 @@ training and a held-out validation flight of the truth plant carrying it (differ
 independent noise) and diagnoses them without being told which. The base model is what a user would have:
 identified by PEM on the contaminated training flight (never the truth), in one box that covers both
 helicopter classes (:data:`BOX`). The diagnosis is the library's default: every candidate fitted jointly
-with the base parameters, credited beyond the base re-fitted alone (:func:`~jaxheli.gap.ranking.fit_and_score`) or the given base, whichever
-predicts the validation flight better (:func:`~jaxheli.gap.ranking.yardstick`).
+with the base parameters, credited beyond the base re-fitted alone (:func:`~jaxheli.gap.ranking.fit_and_score`)
+or the given base, whichever predicts the validation flight better (:func:`~jaxheli.gap.ranking.yardstick`).
 The oracle is the identified base with the *true* effect, started at its true values and fitted jointly the
 same way. All trials of a run share the flight length, so each fit compiles once; candidates are fitted in one
 compiled solve, mapped over them.
@@ -215,8 +215,9 @@ def run_blind(
 ) -> list[dict[str, Any]]:
     """Diagnose each ``(kind, seed)`` trial blind (:func:`run_trial` with ``options``); one record per trial, in
     the order of ``trials``. ``workers > 1`` runs trials in that many processes (each a trial at a time, in
-    float64, each started on a core of its own when the machine has that many, :func:`_worker_cores`). A progress bar advances per trial and ``on_trial(records_so_far)`` runs after each, e.g. to save
-    (records finished so far, in the order of ``trials``)."""
+    float64, each started on a core of its own when the machine has that many, :func:`_worker_cores`). A progress
+    bar advances per trial and ``on_trial(records_so_far)`` runs after each, e.g. to save (records finished so far,
+    in the order of ``trials``)."""
     done: dict[int, dict[str, Any]] = {}
 
     def finished(i: int, record: dict[str, Any]) -> None:
