@@ -68,11 +68,11 @@ def test_scenarios_cover_every_combination_and_the_box_holds_every_truth():
 def test_summary_arithmetic_and_table():
     records = [
         {"kind": "input_delay", "top": "input_delay", "correct": True, "in_tie": True, "magnitude_error": 0.1,
-         "shrink_pct": 40.0, "oracle_shrink_pct": 50.0},
+         "shrink_pct": 40.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 3.0},
         {"kind": "input_delay", "top": "actuator_lag", "correct": False, "in_tie": True, "magnitude_error": 0.3,
-         "shrink_pct": 45.0, "oracle_shrink_pct": 50.0},
+         "shrink_pct": 45.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 0.4},
         {"kind": "input_delay", "top": "none", "correct": False, "in_tie": False, "magnitude_error": 0.5,
-         "shrink_pct": 1.0, "oracle_shrink_pct": 4.0},
+         "shrink_pct": 1.0, "oracle_shrink_pct": 4.0, "oracle_evidence_z": 9.0},
         {"kind": "none", "top": "none", "correct": True},
         {"kind": "none", "top": "none", "correct": True},
         {"kind": "none", "top": "process_noise", "correct": False},
@@ -82,9 +82,13 @@ def test_summary_arithmetic_and_table():
     assert row["top1_pct"] == pytest.approx(100 / 3) and row["in_tie_pct"] == pytest.approx(200 / 3)
     assert row["detectable_trials"] == 2 and row["top1_detectable_pct"] == 50.0  # the 4 % trial is below 10 %
     assert row["in_tie_detectable_pct"] == 100.0
-    assert row["magnitude_error_median"] == pytest.approx(0.2) and row["shrink_vs_oracle_pct"] == pytest.approx(85.0)
+    assert row["magnitude_error_median_detectable"] == pytest.approx(0.2)
+    assert row["shrink_vs_oracle_pct"] == pytest.approx(85.0)
+    # the second trial's training flight does not resolve its effect (oracle at 0.4 standard errors)
+    assert row["identifiable_trials"] == 1 and row["top1_identifiable_pct"] == 100.0
+    assert row["magnitude_error_median_identifiable"] == pytest.approx(0.1)
     assert s["false_positive_pct"] == pytest.approx(100 / 3)
-    assert "| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 85.0 |" in markdown(s)
+    assert "| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 1 | 100 | 100 | 10.0 % | 85.0 |" in markdown(s)
 
 
 def test_validation_flight_differs_from_training_flight():
@@ -103,6 +107,7 @@ def test_small_blind_run_attributes_saturation_and_clears_control():
     assert saturation["truth"] == "table2" and saturation["strength"] == 3.0 and saturation["base"]["method"] == "pem"
     assert saturation["top"] == "control_saturation" and saturation["correct"] and saturation["in_tie"]
     assert saturation["magnitude_error"] < 0.25 and saturation["oracle_shrink_pct"] > 10
+    assert saturation["oracle_evidence_z"] >= 1.0 and control["oracle_evidence_z"] is None
     assert control["top"] == "none" and control["correct"]
     assert all(len(r["ranking"]) == 8 for r in records)
 
