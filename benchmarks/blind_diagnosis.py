@@ -3,8 +3,8 @@
 Each trial's base model is identified by PEM on its contaminated training flight (never the truth); the
 scenario (truth model, pilot style, noise, effect strength) cycles with the seed (:func:`jaxheli.gap.blind.
 scenario`). Writes ``OUT/blind.json`` (per-trial records and the summary) and ``OUT/blind.md`` (per kind:
-top-1 and in-tie-set %, detectable trials, median magnitude error, median shrink vs the oracle; false-positive
-%), both after every trial. Usage::
+top-1 and in-tie-set % and median magnitude error over all, detectable and identifiable trials, median shrink vs
+the oracle; false-positive %), both after every trial. Usage::
 
     python benchmarks/blind_diagnosis.py [--seeds 20] [--kinds input_delay none ...] [--pem-steps 100] [--workers 2] [--out results/blind]
 """

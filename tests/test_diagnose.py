@@ -132,8 +132,12 @@ def test_joint_reidentification_finds_the_delay_and_credits_it_beyond_the_refitt
     refit = d["base_refit"]
     assert refit["joint"] and refit["settled"]
     top = d["ranking"][0]
-    assert top["effect"] == "input_delay" and top["significant"] and top["where"] == ["lon"]
-    assert 0.05 < top["params"]["delay_lon"]["value"] < 0.1 and top["lr"]["p_value"] < 1e-6
+    assert top["effect"] == "input_delay" and top["significant"] and "lon" in top["where"]
+    delays = {a: top["params"][f"delay_{a}"]["value"] for a in ("lat", "lon", "ped", "col")}
+    assert 0.05 < delays.pop("lon") < 0.1 and top["lr"]["p_value"] < 1e-6
+    # no other axis near it; not none at all: compiled at XLA's optimisation level 3 instead of the suite's 0, the
+    # joint fit ends in another optimum with a 30 +- 6 ms col delay (traded against the heave parameters)
+    assert max(delays.values()) < 0.5 * top["params"]["delay_lon"]["value"]
     assert not any(e["significant"] for e in d["ranking"][2:])
     for e in d["ranking"]:
         lower, upper = effects.box(e["effect"], OUT)
@@ -152,9 +156,9 @@ def test_joint_reidentification_finds_the_delay_and_credits_it_beyond_the_refitt
 
 
 def test_an_under_fitted_base_model_is_named_not_an_effect():
-    """The failure mode: a model identified with 3 PEM steps, flights with no effect. On the training flight
-    extra freedom buys a "significant" likelihood ratio; the diagnosis says the base is under-fitted and
-    credits no effect."""
+    """The failure mode: a model identified with 3 PEM steps, flights with no effect. Fitted on top of the
+    frozen base (``--frozen-base``), extra freedom buys a "significant" training likelihood ratio; re-identified
+    jointly (the default), the diagnosis says the base is under-fitted and credits no effect."""
     train, validate = _flight(0.0, 3, 0.2), _flight(0.0, 4, 0.25)
     base = pem(train, max_steps=3, outputs=OUT).theta
     d = diagnose(base, train, validate, **OPTIONS)
@@ -163,7 +167,8 @@ def test_an_under_fitted_base_model_is_named_not_an_effect():
     assert d["verdict"].startswith("base model under-fitted")
     assert d["verdict"].endswith(("no significant effect", "before attributing effects"))
     assert not any(e["significant"] for e in d["ranking"])
-    assert min(e["lr"]["p_value"] for e in d["ranking"]) < 1e-3  # the training likelihood alone would claim one
+    frozen = diagnose(base, train, validate, joint=False, **OPTIONS)
+    assert min(e["lr"]["p_value"] for e in frozen["ranking"]) < 1e-3  # the training likelihood alone claims one
 
 
 def test_shared_outputs_and_bad_channels():

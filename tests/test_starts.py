@@ -13,10 +13,11 @@ PAD = augmented.size(OUT)
 
 def test_start_rows_try_the_axes_together_where_asked_then_each_alone():
     rows = effects.start_rows("control_saturation", OUT)
-    expected = np.ones((6, 4))
-    expected[1] = 25.0
-    for axis in range(4):
-        expected[2 + axis, axis] = 25.0
+    expected = np.ones((11, 4))
+    for t, value in enumerate((25.0, 90.0)):
+        expected[1 + 5 * t] = value
+        for axis in range(4):
+            expected[2 + 5 * t + axis, axis] = value
     np.testing.assert_array_equal(rows, expected)
     drag = effects.start_rows("quadratic_drag", OUT)
     np.testing.assert_array_equal(drag, [[0, 0], [-3, -3], [-3, 0], [0, -3]])
