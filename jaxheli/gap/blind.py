@@ -237,9 +237,10 @@ def run_blind(
         running: dict[Future, tuple[int, ProcessPoolExecutor]] = {}
 
         def feed(pool: ProcessPoolExecutor) -> None:
-            for i, (kind, seed) in todo:
+            trial = next(todo, None)
+            if trial is not None:
+                i, (kind, seed) = trial
                 running[pool.submit(run_trial, kind, seed, **options)] = (i, pool)
-                return
 
         with contextlib.ExitStack() as stack:
             for core in _worker_cores(workers):
