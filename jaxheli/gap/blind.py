@@ -302,7 +302,7 @@ def identifiable(record: dict[str, Any]) -> bool:
     size stands :data:`~jaxheli.gap.ranking.MIN_Z` standard errors or more from no effect
     (:func:`~jaxheli.effects.registry.evidence`), the test every significant candidate must pass. The validation
     flight's 3-2-1-1 sticks (0.25) are larger than a regulating pilot's (about 0.08 at most): a saturation at 0.15-0.3
-    stick then shrinks the held-out gap by half once its true size is handed in, yet the training flight cannot
+    stick then shrinks the held-out gap by 40-90 % once its true size is handed in, yet the training flight cannot
     tell it from none (e.g. 1 +- 26 1/stick^2 fitted for a true 65)."""
     z = record.get("oracle_evidence_z")
     return record["oracle_shrink_pct"] >= DETECTABLE_PCT and z is not None and z >= MIN_Z
