@@ -11,8 +11,8 @@ import pytest
 from jaxheli._affinity import cores
 from jaxheli.effects import plant as augmented
 from jaxheli.gap.blind import (
-    BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, _process_on, _worker_cores, blind_flights, markdown, run_blind,
-    sample_injection, scenario, summarise,
+    BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, _process_on, _worker_cores, base_model, blind_flights, markdown,
+    run_blind, sample_injection, scenario, summarise, summarise_bases,
 )
 from jaxheli.model import R50_SI, TABLE2
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS
@@ -68,11 +68,11 @@ def test_scenarios_cover_every_combination_and_the_box_holds_every_truth():
 def test_summary_arithmetic_and_table():
     records = [
         {"kind": "input_delay", "top": "input_delay", "correct": True, "in_tie": True, "magnitude_error": 0.1,
-         "shrink_pct": 40.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 3.0},
+         "shrink_pct": 40.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 3.0, "oracle_magnitude_error": 0.05},
         {"kind": "input_delay", "top": "actuator_lag", "correct": False, "in_tie": True, "magnitude_error": 0.3,
-         "shrink_pct": 45.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 0.4},
+         "shrink_pct": 45.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 0.4, "oracle_magnitude_error": 0.25},
         {"kind": "input_delay", "top": "none", "correct": False, "in_tie": False, "magnitude_error": 0.5,
-         "shrink_pct": 1.0, "oracle_shrink_pct": 4.0, "oracle_evidence_z": 9.0},
+         "shrink_pct": 1.0, "oracle_shrink_pct": 4.0, "oracle_evidence_z": 9.0, "oracle_magnitude_error": 0.6},
         {"kind": "none", "top": "none", "correct": True},
         {"kind": "none", "top": "none", "correct": True},
         {"kind": "none", "top": "process_noise", "correct": False},
@@ -87,8 +87,34 @@ def test_summary_arithmetic_and_table():
     # the second trial's training flight does not resolve its effect (oracle at 0.4 standard errors)
     assert row["identifiable_trials"] == 1 and row["top1_identifiable_pct"] == 100.0
     assert row["magnitude_error_median_identifiable"] == pytest.approx(0.1)
+    assert row["oracle_magnitude_error_median_detectable"] == pytest.approx(0.15)
+    assert row["oracle_magnitude_error_median_identifiable"] == pytest.approx(0.05)
     assert s["false_positive_pct"] == pytest.approx(100 / 3)
-    assert "| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 1 | 100 | 100 | 10.0 % | 85.0 |" in markdown(s)
+    assert "| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 1 | 100 | 100 | 10.0 % | 5.0 % | 85.0 |" in markdown(s)
+
+
+def test_other_base_methods_are_summarised_beside_pem_on_the_same_trials():
+    """PEM controls on seeds 0-2 (seed 2 a false positive) and IWO + polish ones on seeds 0-1 (seed 1 one): the main
+    table is PEM's over every seed; IWO's is set beside PEM's over seeds 0-1 alone."""
+    def control(seed, method, top="none"):
+        return {"kind": "none", "seed": seed, "top": top, "correct": top == "none", "base": {"method": method}}
+
+    records = [control(0, "pem"), control(1, "pem"), control(2, "pem", "input_delay"), control(0, "iwo+polish"),
+               control(1, "iwo+polish", "quadratic_drag")]
+    s = summarise_bases(records, 2)
+    assert s["false_positive_pct"] == pytest.approx(100 / 3) and s["kinds"]["none"]["trials"] == 3
+    both = s["bases"]["iwo+polish"]
+    assert both["iwo+polish"]["false_positive_pct"] == 50.0 and both["pem"]["false_positive_pct"] == 0.0
+    assert both["pem"]["kinds"]["none"]["trials"] == 2
+    text = markdown(s)
+    assert "### Base model by iwo+polish against PEM, on the same trials (seeds 0-1)" in text
+    assert text.count("False positives on effect-free flights") == 3
+    assert summarise_bases(records[:3], 0)["bases"] == {}
+
+
+def test_an_unknown_base_method_is_named():
+    with pytest.raises(ValueError, match="unknown base method 'oracle'"):
+        base_model(blind_flights(sample_injection("none", 0), 0, scenario(0), duration=12.0)[0], "oracle", 0)
 
 
 def test_validation_flight_differs_from_training_flight():

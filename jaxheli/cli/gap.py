@@ -91,6 +91,11 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     p.add_argument("--max-steps", type=int, default=15, help="LM steps per candidate fit (default 15)")
     p.add_argument("--pem-steps", type=int, default=100,
                    help="PEM steps identifying each trial's base model on its training flight (default 100)")
+    p.add_argument("--iwo-seeds", type=int, default=3,
+                   help="the first N seeds of every kind run again with an IWO + polish base model, reported beside "
+                        "PEM on the same trials (default 3; 0: PEM only)")
+    p.add_argument("--iterations", type=int, default=1000,
+                   help="IWO generations of those base models (default 1000, the paper)")
     p.add_argument("--workers", type=int, default=1,
                    help="trials run in parallel processes, each on a core of its own (default 1)")
     p.add_argument("--out", default="jaxheli-blind", help="output folder (blind.json, blind.md)")
@@ -158,8 +163,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
 
 def _cmd_blind(args: argparse.Namespace) -> int:
-    summary = run_benchmark(args.kinds, args.seeds, args.out, workers=args.workers, duration=args.duration,
-                            dt=args.dt, max_steps=args.max_steps, pem_steps=args.pem_steps)
+    summary = run_benchmark(args.kinds, args.seeds, args.out, workers=args.workers, iwo_seeds=args.iwo_seeds,
+                            duration=args.duration, dt=args.dt, max_steps=args.max_steps, pem_steps=args.pem_steps,
+                            iterations=args.iterations)
     print(markdown(summary))
     print(f"runtime {summary['runtime_s']:.0f} s; wrote {Path(args.out) / 'blind.json'} and blind.md")
     return 0

@@ -4,12 +4,12 @@ Each trial draws a scenario (:func:`scenario`: truth model, pilot/excitation sty
 effect strength) and one effect kind at a random realistic magnitude (:func:`sample_injection`), flies a
 training and a held-out validation flight of the truth plant carrying it (different excitations,
 independent noise) and diagnoses them without being told which. The base model is what a user would have:
-identified by PEM on the contaminated training flight (never the truth), in one box that covers both
-helicopter classes (:data:`BOX`). The diagnosis is the library's default: every candidate fitted jointly
+identified on the contaminated training flight (never the truth), in one box that covers both helicopter
+classes (:data:`BOX`): by PEM, or by IWO and its gradient polish (:data:`BASES`, :func:`base_model`). The diagnosis is the library's default: every candidate fitted jointly
 with the base parameters, credited beyond the base re-fitted alone (:func:`~jaxheli.gap.ranking.fit_and_score`)
 or the given base, whichever predicts the validation flight better (:func:`~jaxheli.gap.ranking.yardstick`).
 The oracle is the identified base with the *true* effect, started at its true values and fitted jointly the
-same way. All trials of a run share the flight length, so each fit compiles once; candidates are fitted in one
+same way; its own magnitude error shows how much of the diagnosis's is the identified base's. All trials of a run share the flight length, so each fit compiles once; candidates are fitted in one
 compiled solve, mapped over them.
 """
 
@@ -25,7 +25,7 @@ import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import numpy as np
@@ -37,6 +37,7 @@ from ..data.flight import FlightData
 from ..effects import registry as fx
 from ..effects.catalogue import EFFECTS
 from ..effects.plant import no_effect
+from ..identify import identify
 from ..model import LOWER, R50_SI, TABLE2, UPPER
 from ..optim.pem import pem
 from ..synth.excitation import Excitation
@@ -150,18 +151,49 @@ def blind_flights(injection: Injection, seed: int, where: Scenario, *, duration:
     return train, validate
 
 
+BASES: tuple[str, ...] = ("pem", "iwo+polish")
+"""How a trial's base model is identified on its training flight: PEM (:func:`~jaxheli.optim.pem.pem`), or the
+paper's IWO on the Pearson cost followed by the output-error polish (:func:`~jaxheli.identify.identify`)."""
+
+
+class Trial(NamedTuple):
+    """One blind trial: effect kind, seed and base-model method (:data:`BASES`)."""
+
+    kind: str
+    seed: int
+    base: str = "pem"
+
+
+def base_model(train: FlightData, method: str, seed: int, *, pem_steps: int = 100, iterations: int = 1000,
+               outputs: tuple[str, ...] = DEFAULT_OUTPUTS) -> tuple[np.ndarray, dict[str, Any]]:
+    """The base model a user identifies on ``train`` in :data:`BOX` by ``method`` (:data:`BASES`): ``(theta,
+    info)``, ``info`` the method and its run (PEM: ``pem_steps`` LM steps; IWO + polish: ``iterations``
+    generations seeded by ``seed``, then the polish)."""
+    if method == "pem":
+        ident = pem(train, max_steps=pem_steps, outputs=outputs, lower=BOX[0], upper=BOX[1])
+        return np.asarray(ident.theta), {"method": method, "steps": ident.n_steps, "success": ident.success,
+                                         "rss": ident.rss}
+    if method == "iwo+polish":
+        ident = identify(train, method=method, iterations=iterations, seed=seed, outputs=outputs, lower=BOX[0],
+                         upper=BOX[1], progress=False)
+        return np.asarray(ident.params), {"method": method, "iterations": iterations, "seconds": ident.seconds,
+                                          "search_cost": ident.polish["cost_after"],
+                                          "polish_objective": ident.polish["objective_after"]}
+    raise ValueError(f"blind trial: unknown base method {method!r}; methods are {BASES}")
+
+
 def run_trial(
-    kind: str, seed: int, *, duration: float = 30.0, dt: float = 0.05, segment: float = 2.0, max_steps: int = 15,
-    pem_steps: int = 100, min_shrink: float = MIN_SHRINK,
+    kind: str, seed: int, *, base: str = "pem", duration: float = 30.0, dt: float = 0.05, segment: float = 2.0,
+    max_steps: int = 15, pem_steps: int = 100, iterations: int = 1000, min_shrink: float = MIN_SHRINK,
 ) -> dict[str, Any]:
-    """One blind trial: scenario and injection of ``seed``, flights, PEM base model on the training flight,
-    joint diagnosis and oracle; the record (verdict, attribution, magnitude error, shrinks, ranking)."""
+    """One blind trial: scenario and injection of ``seed``, flights, base model identified on the training
+    flight by ``base`` (:func:`base_model`), joint diagnosis and oracle; the record (verdict, attribution,
+    magnitude error and the oracle's, shrinks, ranking)."""
     where = scenario(seed)
     outputs = DEFAULT_OUTPUTS
     inj = sample_injection(kind, 7919 * seed + 101 * KINDS.index(kind), outputs, duration, where.strength)
     train, validate = blind_flights(inj, 7919 * seed + KINDS.index(kind), where, duration=duration, dt=dt)
-    ident = pem(train, max_steps=pem_steps, outputs=outputs, lower=BOX[0], upper=BOX[1])
-    theta = ident.theta
+    theta, ident = base_model(train, base, seed, pem_steps=pem_steps, iterations=iterations, outputs=outputs)
     train_pred, validate_pred = predictor_pair(theta, train, validate, segment=segment)
     *arrays, owner = fx.tried_arrays(fx.ALL, outputs)
     oracle = _oracle_row(kind, inj, *fx.candidate_arrays(fx.ALL, outputs))
@@ -185,14 +217,16 @@ def run_trial(
               "oracle_shrink_pct": 100.0 * (1.0 - float(np.mean(gaps[-1]) / np.mean(credit_gaps[1]))),
               "oracle_evidence_z": (fx.evidence(kind, outputs, np.asarray(fit.z[-1]), np.asarray(fit.stderr[-1]))
                                     if kind != "none" else None),
-              "base": {"method": "pem", "steps": ident.n_steps, "success": ident.success, "rss": ident.rss},
+              "base": ident,
               "base_refit": {k: v for k, v in refit.items() if k != "theta"}, "track": float(train_pred.track),
               "ranking": ranking}
     if inj.primary is not None:
         entry = next(e for e in ranking if e["effect"] == kind)
         estimate = entry["params"][inj.primary]["value"]
+        oracle = fx.describe(kind, outputs, np.asarray(fit.z[-1]), np.asarray(fit.stderr[-1]))[0][inj.primary]["value"]
         record.update(estimate=estimate, stderr=entry["params"][inj.primary]["stderr"],
-                      magnitude_error=abs(estimate - inj.value) / abs(inj.value), shrink_pct=entry["shrink_pct"])
+                      magnitude_error=abs(estimate - inj.value) / abs(inj.value), shrink_pct=entry["shrink_pct"],
+                      oracle_estimate=oracle, oracle_magnitude_error=abs(oracle - inj.value) / abs(inj.value))
     return record
 
 
@@ -209,14 +243,14 @@ def _oracle_row(kind: str, inj: Injection, index, start, lower, upper) -> list[n
 
 
 def run_blind(
-    trials: Sequence[tuple[str, int]],
+    trials: Sequence[Trial | tuple[str, int]],
     *,
     on_trial: Callable[[list[dict[str, Any]]], None] | None = None,
     workers: int = 1,
     **options: Any,
 ) -> list[dict[str, Any]]:
-    """Diagnose each ``(kind, seed)`` trial blind (:func:`run_trial` with ``options``); one record per trial, in
-    the order of ``trials``. ``workers > 1`` runs trials in that many processes (each a trial at a time, in
+    """Diagnose each trial (a :class:`Trial` or ``(kind, seed)``) blind (:func:`run_trial` with ``options``); one
+    record per trial, in the order of ``trials``. ``workers > 1`` runs trials in that many processes (each a trial at a time, in
     float64, each started on a core of its own when the machine has that many, :func:`_worker_cores`). A progress
     bar advances per trial and ``on_trial(records_so_far)`` runs after each, e.g. to save (records finished so far,
     in the order of ``trials``)."""
@@ -227,10 +261,11 @@ def run_blind(
         if on_trial is not None:
             on_trial([done[j] for j in sorted(done)])
 
+    trials = [Trial(*t) for t in trials]
     bar = tqdm(total=len(trials), desc="blind trials", unit="trial")
     if workers <= 1:
-        for i, (kind, seed) in enumerate(trials):
-            finished(i, run_trial(kind, seed, **options))
+        for i, (kind, seed, base) in enumerate(trials):
+            finished(i, run_trial(kind, seed, base=base, **options))
             bar.update()
     else:
         todo = iter(enumerate(trials))
@@ -239,8 +274,8 @@ def run_blind(
         def feed(pool: ProcessPoolExecutor) -> None:
             trial = next(todo, None)
             if trial is not None:
-                i, (kind, seed) = trial
-                running[pool.submit(run_trial, kind, seed, **options)] = (i, pool)
+                i, (kind, seed, base) = trial
+                running[pool.submit(run_trial, kind, seed, base=base, **options)] = (i, pool)
 
         with contextlib.ExitStack() as stack:
             for core in _worker_cores(workers):
@@ -312,19 +347,25 @@ def _pct(flags: list[bool]) -> float | None:
     return 100.0 * float(np.mean(flags)) if flags else None
 
 
+def _median(values: list[float]) -> float | None:
+    return float(np.median(values)) if values else None
+
+
 def _subset(rows: list[dict[str, Any]], label: str) -> dict[str, Any]:
-    """Trials, top-1 %, in-tie-set % and median magnitude error of ``rows``, keys suffixed ``label``."""
-    errors = [r["magnitude_error"] for r in rows]
+    """Trials, top-1 %, in-tie-set % and median magnitude error (the diagnosis's and the oracle's) of ``rows``, keys
+    suffixed ``label``."""
     return {f"{label}_trials": len(rows), f"top1_{label}_pct": _pct([r["correct"] for r in rows]),
             f"in_tie_{label}_pct": _pct([r.get("in_tie", r["correct"]) for r in rows]),
-            f"magnitude_error_median_{label}": float(np.median(errors)) if errors else None}
+            f"magnitude_error_median_{label}": _median([r["magnitude_error"] for r in rows]),
+            f"oracle_magnitude_error_median_{label}": _median([r["oracle_magnitude_error"] for r in rows
+                                                                if "oracle_magnitude_error" in r])}
 
 
 def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
     """Per kind: trials, top-1 % and in-tie-set %, over all trials, over the detectable ones (oracle shrink
     >= :data:`DETECTABLE_PCT`) and over the identifiable ones (:func:`identifiable`), with the median relative
-    magnitude error of each subset, and the median shrink vs oracle % (detectable); plus the false-positive % on
-    effect-free flights."""
+    magnitude error of each subset (the diagnosis's and the oracle's), and the median shrink vs oracle %
+    (detectable); plus the false-positive % on effect-free flights."""
     table = {}
     for kind in dict.fromkeys(r["kind"] for r in records):
         rs = [r for r in records if r["kind"] == kind]
@@ -343,12 +384,14 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def markdown(summary: dict[str, Any]) -> str:
-    """The summary as a markdown table."""
+    """The summary as a markdown table (with ``"bases"``, :func:`summarise_bases`, a pair of tables per other base
+    method)."""
     lines = [f"| kind | trials | top-1 % | in tie % | detectable (oracle shrink >= {DETECTABLE_PCT:g} %) | "
              "top-1 % detectable | in tie % detectable | median magnitude error (detectable) | "
              f"identifiable (oracle z >= {MIN_Z:g}) | top-1 % identifiable | in tie % identifiable | "
-             "median magnitude error (identifiable) | median shrink vs oracle % |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "median magnitude error (identifiable) | oracle's median magnitude error (identifiable) | "
+             "median shrink vs oracle % |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def cell(value: float | None, fmt: str) -> str:
         return "-" if value is None else format(value, fmt)
@@ -361,33 +404,55 @@ def markdown(summary: dict[str, Any]) -> str:
                           f" | {cell(row.get(f'in_tie_{s}_pct'), '.0f')}"
                           f" | {error(row.get(f'magnitude_error_median_{s}'))}" for s in ("detectable", "identifiable"))
         lines.append(f"| {kind} | {row['trials']} | {cell(row['top1_pct'], '.0f')} | {cell(row['in_tie_pct'], '.0f')}"
-                     f"{subsets} | {cell(row.get('shrink_vs_oracle_pct'), '.1f')} |")
+                     f"{subsets} | {error(row.get('oracle_magnitude_error_median_identifiable'))}"
+                     f" | {cell(row.get('shrink_vs_oracle_pct'), '.1f')} |")
     lines.append(f"\nFalse positives on effect-free flights: {cell(summary['false_positive_pct'], '.0f')} %")
+    for method, both in summary.get("bases", {}).items():
+        lines.append(f"\n### Base model by {method} against PEM, on the same trials (seeds 0-{both['seeds'] - 1})\n")
+        lines += [f"{m}:\n\n{markdown(both[m])}\n" for m in (method, "pem")]
     return "\n".join(lines)
 
 
-def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: int = 1, **options: Any
-                  ) -> dict[str, Any]:
-    """Run ``seeds`` blind trials per kind (seeds ``0..seeds-1``, so every kind meets the same scenarios) in
-    ``workers`` processes; write ``OUT/blind.json`` (records, summary) and ``OUT/blind.md`` after every trial."""
+def summarise_bases(records: list[dict[str, Any]], seeds: int) -> dict[str, Any]:
+    """:func:`summarise` of the PEM-base trials, with ``"bases"``: for every other base method (:data:`BASES`) that
+    ran, its summary and the PEM-base summary of the same trials (seeds ``0..seeds-1``), side by side."""
+    pem_rows = [r for r in records if r["base"]["method"] == "pem"]
+    summary = summarise(pem_rows)
+    summary["bases"] = {}
+    for method in BASES[1:]:
+        rows = [r for r in records if r["base"]["method"] == method]
+        if rows:
+            summary["bases"][method] = {"seeds": seeds, method: summarise(rows),
+                                        "pem": summarise([r for r in pem_rows if r["seed"] < seeds])}
+    return summary
+
+
+def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: int = 1, iwo_seeds: int = 0,
+                  **options: Any) -> dict[str, Any]:
+    """Run ``seeds`` blind trials per kind (seeds ``0..seeds-1``, so every kind meets the same scenarios) with a
+    PEM base model, and the first ``iwo_seeds`` of them again with an IWO + polish base (:func:`base_model`), in
+    ``workers`` processes; write ``OUT/blind.json`` (records, :func:`summarise_bases`) and ``OUT/blind.md`` after
+    every trial."""
     bad = [k for k in kinds if k not in KINDS]
     if bad:
         raise ValueError(f"blind benchmark: unknown kinds {bad}; kinds are {KINDS}")
     t0 = time.perf_counter()
-    settings = {"kinds": list(kinds), "seeds": seeds, "workers": workers, **options,
-                "base_model": "PEM on the contaminated training flight (blind.BOX), never the truth",
+    settings = {"kinds": list(kinds), "seeds": seeds, "iwo_seeds": iwo_seeds, "workers": workers, **options,
+                "base_model": "PEM (every trial) or IWO + polish (the first iwo_seeds) on the contaminated "
+                              "training flight (blind.BOX), never the truth",
                 "diagnosis": "joint re-identification (default of jaxheli diagnose)"}
+    trials = ([Trial(k, s) for s in range(seeds) for k in kinds]
+              + [Trial(k, s, "iwo+polish") for s in range(min(iwo_seeds, seeds)) for k in kinds])
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
 
     def save(records: list[dict[str, Any]]) -> dict[str, Any]:
-        summary = summarise(records)
+        summary = summarise_bases(records, iwo_seeds)
         summary["runtime_s"] = time.perf_counter() - t0
         summary["settings"] = settings
-        summary["complete"] = len(records) == len(kinds) * seeds
+        summary["complete"] = len(records) == len(trials)
         (out / "blind.json").write_text(json.dumps({"summary": summary, "records": records}, indent=2))
         (out / "blind.md").write_text(markdown(summary) + f"\n\nRuntime {summary['runtime_s']:.0f} s.\n")
         return summary
 
-    records = run_blind([(k, s) for s in range(seeds) for k in kinds], on_trial=save, workers=workers, **options)
-    return save(records)
+    return save(run_blind(trials, on_trial=save, workers=workers, **options))
