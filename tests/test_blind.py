@@ -68,11 +68,14 @@ def test_scenarios_cover_every_combination_and_the_box_holds_every_truth():
 def test_summary_arithmetic_and_table():
     records = [
         {"kind": "input_delay", "top": "input_delay", "correct": True, "in_tie": True, "magnitude_error": 0.1,
-         "shrink_pct": 40.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 3.0, "oracle_magnitude_error": 0.05},
+         "shrink_pct": 40.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 3.0, "oracle_magnitude_error": 0.05,
+         "magnitude_error_train": 0.2},
         {"kind": "input_delay", "top": "actuator_lag", "correct": False, "in_tie": True, "magnitude_error": 0.3,
-         "shrink_pct": 45.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 0.4, "oracle_magnitude_error": 0.25},
+         "shrink_pct": 45.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 0.4, "oracle_magnitude_error": 0.25,
+         "magnitude_error_train": 0.4},
         {"kind": "input_delay", "top": "none", "correct": False, "in_tie": False, "magnitude_error": 0.5,
-         "shrink_pct": 1.0, "oracle_shrink_pct": 4.0, "oracle_evidence_z": 9.0, "oracle_magnitude_error": 0.6},
+         "shrink_pct": 1.0, "oracle_shrink_pct": 4.0, "oracle_evidence_z": 9.0, "oracle_magnitude_error": 0.6,
+         "magnitude_error_train": 0.7},
         {"kind": "none", "top": "none", "correct": True},
         {"kind": "none", "top": "none", "correct": True},
         {"kind": "none", "top": "process_noise", "correct": False},
@@ -89,8 +92,9 @@ def test_summary_arithmetic_and_table():
     assert row["magnitude_error_median_identifiable"] == pytest.approx(0.1)
     assert row["oracle_magnitude_error_median_detectable"] == pytest.approx(0.15)
     assert row["oracle_magnitude_error_median_identifiable"] == pytest.approx(0.05)
+    assert row["train_magnitude_error_median_detectable"] == pytest.approx(0.3)
     assert s["false_positive_pct"] == pytest.approx(100 / 3)
-    assert "| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 1 | 100 | 100 | 10.0 % | 5.0 % | 85.0 |" in markdown(s)
+    assert "| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 1 | 100 | 100 | 10.0 % | 20.0 % | 5.0 % | 85.0 |" in markdown(s)
 
 
 def test_other_base_methods_are_summarised_beside_pem_on_the_same_trials():

@@ -74,7 +74,7 @@ def test_injected_delay_is_diagnosed_and_reported(delayed):
         assert {"statistic", "dof", "p_value", "delta_aic"} <= set(e["lr"])
         for name, value in e["params"].items():
             assert value["interval"][0] <= value["value"] <= value["interval"][1], name
-    assert d["base_refit"] == {"joint": False}
+    assert d["base_refit"] == {"joint": False} and d["final"] is None  # frozen: no re-identification on both
     shrinks = [e["shrink_pct"] for e in d["ranking"]]
     assert shrinks == sorted(shrinks, reverse=True)
     top = d["ranking"][0]
@@ -118,7 +118,7 @@ def test_clean_flight_gives_no_significant_effect():
     assert json.loads(json.dumps(d, allow_nan=False)) == d  # plain, strict JSON
     assert d["verdict"] == "no significant effect"
     assert not any(e["significant"] for e in d["ranking"])
-    assert d["combination"] is None and d["gap_after"]["combination"] is None
+    assert d["combination"] is None and d["gap_after"]["combination"] is None and d["final"] is None
     assert abs(d["ranking"][0]["shrink_pct"]) < 10
     assert d["base_refit"]["joint"] and d["base_refit"]["settled"] and not d["base_refit"]["under_fitted"]
 
@@ -144,6 +144,9 @@ def test_joint_reidentification_finds_the_delay_and_credits_it_beyond_the_refitt
         values = np.array([e["params"][p.name]["value"] for p in effects.params(e["effect"], OUT)])
         assert np.all(lower <= values) and np.all(values <= upper), e["effect"]
     assert d["verdict"].startswith(("input_delay", "base model under-fitted")) and "input_delay" in d["verdict"]
+    final = d["final"]  # the named delay re-identified on both flights
+    assert final["effect"] == "input_delay" and "lon" in final["where"] and not final["at_bound"]
+    assert abs(final["params"]["delay_lon"]["value"] - DELAY) < max(3 * final["params"]["delay_lon"]["stderr"], 0.01)
     theta = np.array([refit["theta"][n] for n in PARAM_NAMES])
     track = d["track"] * np.exp(-abs(refit["nuisance"]["state_noise_cut"]))  # the reference re-tunes the filter
     assert set(refit["nuisance"]) == set(top["nuisance"]) == {"state_noise_cut"}

@@ -157,6 +157,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     for line in ranking_table(diagnosis):
         print(line)
     print(f"verdict: {diagnosis['verdict']}")
+    if diagnosis.get("final"):
+        print(f"its size re-identified with the base model on both flights: {diagnosis['final']['summary']}")
     for path in write_diagnosis(diagnosis, theta, validate, args.out):
         print(f"wrote {path}")
     return 0

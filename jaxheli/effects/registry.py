@@ -172,6 +172,27 @@ def evidence(effect: str, outputs: tuple[str, ...], value: np.ndarray, stderr: n
     return float(max(z, default=0.0))
 
 
+def report(name: str, outputs: tuple[str, ...], value: np.ndarray, stderr: np.ndarray) -> dict:
+    """A fitted effect, or a combination ``"a+b"`` (its parts' values in turn), in words and numbers:
+    ``params`` and ``where`` (:func:`describe`, merged over the parts), ``summary`` (their sentences, and the
+    parameters :func:`at_bound` if any), ``at_bound`` and ``evidence_z`` (the largest part's :func:`evidence`)."""
+    named, where, sentence, bound, z, offset = {}, [], [], [], 0.0, 0
+    value, stderr = np.asarray(value, dtype=np.float64), np.asarray(stderr, dtype=np.float64)
+    for part in name.split("+"):
+        n = len(params(part, outputs))
+        v, s = value[offset:offset + n], stderr[offset:offset + n]
+        p, w, text = describe(part, outputs, v, s)
+        named.update(p)
+        where += w
+        sentence.append(text)
+        bound += at_bound(part, outputs, v)
+        z = max(z, evidence(part, outputs, v, s))
+        offset += n
+    if bound:
+        sentence.append("on the physical bound: " + ", ".join(bound))
+    return {"params": named, "where": where, "summary": "; ".join(sentence), "at_bound": bound, "evidence_z": z}
+
+
 def _phrase(effect: str, p: Param, value: float, stderr: float) -> str:
     if p.unit == "s":
         return f"{p.where} {effect.replace('_', ' ')} {p.name.split('_')[0]} {1e3 * value:.0f} +- {1e3 * stderr:.0f} ms"

@@ -9,7 +9,8 @@ classes (:data:`BOX`): by PEM, or by IWO and its gradient polish (:data:`BASES`,
 with the base parameters, credited beyond the base re-fitted alone (:func:`~jaxheli.gap.ranking.fit_and_score`)
 or the given base, whichever predicts the validation flight better (:func:`~jaxheli.gap.ranking.yardstick`).
 The oracle is the identified base with the *true* effect, started at its true values and fitted jointly the
-same way; its own magnitude error shows how much of the diagnosis's is the identified base's. All trials of a run share the flight length, so each fit compiles once; candidates are fitted in one
+same way; its own magnitude error shows how much of the diagnosis's is the identified base's. The named
+effect's size is then re-identified on both flights (:func:`~jaxheli.gap.final_fit.final_fit`). All trials of a run share the flight length, so each fit compiles once; candidates are fitted in one
 compiled solve, mapped over them.
 """
 
@@ -42,6 +43,7 @@ from ..model import LOWER, R50_SI, TABLE2, UPPER
 from ..optim.pem import pem
 from ..synth.excitation import Excitation
 from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
+from .final_fit import final_fit
 from .fit_effect import with_reference
 from .ranking import (
     MIN_SHRINK, MIN_Z, base_refit, fit_and_score, predictor_pair, shrink_entries, theta_box, withhold, yardstick,
@@ -187,8 +189,11 @@ def run_trial(
     max_steps: int = 15, pem_steps: int = 100, iterations: int = 1000, min_shrink: float = MIN_SHRINK,
 ) -> dict[str, Any]:
     """One blind trial: scenario and injection of ``seed``, flights, base model identified on the training
-    flight by ``base`` (:func:`base_model`), joint diagnosis and oracle; the record (verdict, attribution,
-    magnitude error and the oracle's, shrinks, ranking)."""
+    flight by ``base`` (:func:`base_model`), joint diagnosis and oracle; the record (verdict, attribution, shrinks,
+    ranking, the named effect's :func:`~jaxheli.gap.final_fit.final_fit`). The magnitude is the one the diagnosis
+    reports for the true kind: re-identified on both flights where it is the named effect, else its training fit
+    (``estimate``, ``magnitude_error``); beside it the training fit's (``estimate_train``,
+    ``magnitude_error_train``) and the oracle's (``oracle_estimate``, ``oracle_magnitude_error``)."""
     where = scenario(seed)
     outputs = DEFAULT_OUTPUTS
     inj = sample_injection(kind, 7919 * seed + 101 * KINDS.index(kind), outputs, duration, where.strength)
@@ -199,16 +204,18 @@ def run_trial(
     oracle = _oracle_row(kind, inj, *fx.candidate_arrays(fx.ALL, outputs))
     arrays = [np.vstack([a, o]) for a, o in zip(arrays, oracle)]
     cand = with_reference(*arrays, pad=len(no_effect(outputs)), shared=fx.nuisance_arrays(outputs))
-    fit, gaps, segs, rss_start = fit_and_score(train_pred, validate_pred, theta, cand, max_steps,
-                                               theta_box(theta, Bounds(*BOX)), np.r_[owner, len(fx.ALL)],
-                                               challenge=len(fx.ALL))
+    box = theta_box(theta, Bounds(*BOX))
+    fit, gaps, segs, rss_start = fit_and_score(train_pred, validate_pred, theta, cand, max_steps, box,
+                                               np.r_[owner, len(fx.ALL)], challenge=len(fx.ALL))
     n = len(fx.ALL) + 1
     credit_gaps, credit_segs = yardstick(gaps, segs)
     ranking = shrink_entries(list(fx.ALL), outputs, jax.tree.map(lambda a: a[:n], fit), credit_gaps[1:n + 1],
                              credit_segs[1:n + 1], min_shrink, shared=True)
     refit = base_refit(fit, gaps, segs, outputs, rss_start, min_shrink)
-    ranking = [{k: v for k, v in e.items() if k != "theta"} for e in withhold(ranking, refit)]
+    ranking = withhold(ranking, refit)
     best = next((e for e in ranking if e["significant"]), None)
+    final = final_fit(train_pred, validate_pred, best, box) if best is not None else None
+    ranking = [{k: v for k, v in e.items() if k != "theta"} for e in ranking]
     top = best["effect"] if best else "none"
     record = {"kind": kind, "seed": int(seed), "truth": where.truth, "style": where.style, "noise": where.noise,
               "strength": where.strength, "top": top, "correct": top == kind,
@@ -219,15 +226,21 @@ def run_trial(
                                     if kind != "none" else None),
               "base": ident,
               "base_refit": {k: v for k, v in refit.items() if k != "theta"}, "track": float(train_pred.track),
-              "ranking": ranking}
+              "ranking": ranking, "final": None if final is None else {k: v for k, v in final.items() if k != "theta"}}
     if inj.primary is not None:
         entry = next(e for e in ranking if e["effect"] == kind)
-        estimate = entry["params"][inj.primary]["value"]
+        trained = entry["params"][inj.primary]
+        reported = final["params"][inj.primary] if top == kind else trained
         oracle = fx.describe(kind, outputs, np.asarray(fit.z[-1]), np.asarray(fit.stderr[-1]))[0][inj.primary]["value"]
-        record.update(estimate=estimate, stderr=entry["params"][inj.primary]["stderr"],
-                      magnitude_error=abs(estimate - inj.value) / abs(inj.value), shrink_pct=entry["shrink_pct"],
-                      oracle_estimate=oracle, oracle_magnitude_error=abs(oracle - inj.value) / abs(inj.value))
+        record.update(estimate=reported["value"], stderr=reported["stderr"],
+                      magnitude_error=_relative_error(reported["value"], inj.value), estimate_train=trained["value"],
+                      magnitude_error_train=_relative_error(trained["value"], inj.value), shrink_pct=entry["shrink_pct"],
+                      oracle_estimate=oracle, oracle_magnitude_error=_relative_error(oracle, inj.value))
     return record
+
+
+def _relative_error(value: float, true: float) -> float:
+    return abs(value - true) / abs(true)
 
 
 def _oracle_row(kind: str, inj: Injection, index, start, lower, upper) -> list[np.ndarray]:
@@ -352,11 +365,13 @@ def _median(values: list[float]) -> float | None:
 
 
 def _subset(rows: list[dict[str, Any]], label: str) -> dict[str, Any]:
-    """Trials, top-1 %, in-tie-set % and median magnitude error (the diagnosis's and the oracle's) of ``rows``, keys
-    suffixed ``label``."""
+    """Trials, top-1 %, in-tie-set % and median magnitude error (the diagnosis's, its training fit's and the
+    oracle's) of ``rows``, keys suffixed ``label``."""
     return {f"{label}_trials": len(rows), f"top1_{label}_pct": _pct([r["correct"] for r in rows]),
             f"in_tie_{label}_pct": _pct([r.get("in_tie", r["correct"]) for r in rows]),
             f"magnitude_error_median_{label}": _median([r["magnitude_error"] for r in rows]),
+            f"train_magnitude_error_median_{label}": _median([r["magnitude_error_train"] for r in rows
+                                                               if "magnitude_error_train" in r]),
             f"oracle_magnitude_error_median_{label}": _median([r["oracle_magnitude_error"] for r in rows
                                                                 if "oracle_magnitude_error" in r])}
 
@@ -389,9 +404,9 @@ def markdown(summary: dict[str, Any]) -> str:
     lines = [f"| kind | trials | top-1 % | in tie % | detectable (oracle shrink >= {DETECTABLE_PCT:g} %) | "
              "top-1 % detectable | in tie % detectable | median magnitude error (detectable) | "
              f"identifiable (oracle z >= {MIN_Z:g}) | top-1 % identifiable | in tie % identifiable | "
-             "median magnitude error (identifiable) | oracle's median magnitude error (identifiable) | "
+             "median magnitude error (identifiable) | training fit's (identifiable) | oracle's (identifiable) | "
              "median shrink vs oracle % |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def cell(value: float | None, fmt: str) -> str:
         return "-" if value is None else format(value, fmt)
@@ -404,7 +419,8 @@ def markdown(summary: dict[str, Any]) -> str:
                           f" | {cell(row.get(f'in_tie_{s}_pct'), '.0f')}"
                           f" | {error(row.get(f'magnitude_error_median_{s}'))}" for s in ("detectable", "identifiable"))
         lines.append(f"| {kind} | {row['trials']} | {cell(row['top1_pct'], '.0f')} | {cell(row['in_tie_pct'], '.0f')}"
-                     f"{subsets} | {error(row.get('oracle_magnitude_error_median_identifiable'))}"
+                     f"{subsets} | {error(row.get('train_magnitude_error_median_identifiable'))}"
+                     f" | {error(row.get('oracle_magnitude_error_median_identifiable'))}"
                      f" | {cell(row.get('shrink_vs_oracle_pct'), '.1f')} |")
     lines.append(f"\nFalse positives on effect-free flights: {cell(summary['false_positive_pct'], '.0f')} %")
     for method, both in summary.get("bases", {}).items():

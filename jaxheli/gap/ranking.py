@@ -50,6 +50,7 @@ from ..problem import Problem
 from ..model import G_SI, PARAM_NAMES
 from ..effects import registry as fx
 from ..effects.plant import no_effect
+from .final_fit import final_fit
 from .fit_effect import Candidates, Fit, embed, fit_candidates, score, with_reference
 from .predictor import Predictor, make_predictor, tune_track
 
@@ -118,19 +119,9 @@ def shrink_entries(
     total_ref, energy = float(np.mean(gap_ref)), float(np.sum(seg_ref))
     out = []
     for c, name in enumerate(names, start=1):
-        value, stderr = np.asarray(fit.z[c]), np.asarray(fit.stderr[c])
-        params, where, sentence, bound, offset, z = {}, [], [], [], 0, 0.0
-        for part in name.split("+"):
-            n = len(fx.params(part, outputs))
-            p, w, s = fx.describe(part, outputs, value[offset:offset + n], stderr[offset:offset + n])
-            params.update(p)
-            where += w
-            sentence.append(s)
-            bound += fx.at_bound(part, outputs, value[offset:offset + n])
-            z = max(z, fx.evidence(part, outputs, value[offset:offset + n], stderr[offset:offset + n]))
-            offset += n
-        if bound:
-            sentence.append("on the physical bound: " + ", ".join(bound))
+        value = np.asarray(fit.z[c])
+        fitted = fx.report(name, outputs, value, np.asarray(fit.stderr[c]))
+        params, bound, z = fitted["params"], fitted["at_bound"], fitted["evidence_z"]
         nuisance = _nuisance(value, outputs, params) if shared else {}
         shrink = 100.0 * (total_ref - float(np.mean(gaps[c]))) / total_ref
         se = _paired_se(seg_ref, segs[c], energy)
@@ -138,7 +129,7 @@ def shrink_entries(
         p_value = float(scipy.stats.ttest_1samp(d, 0.0, alternative="greater").pvalue) if np.ptp(d) > 0 else 1.0
         out.append({
             "effect": name,
-            "where": where,
+            "where": fitted["where"],
             "params": params,
             "shrink_pct": shrink,
             "shrink_se_pct": se,
@@ -152,7 +143,7 @@ def shrink_entries(
             "p_value": p_value,
             "gap_base": total_ref,
             "gap": float(np.mean(gaps[c])),
-            "summary": "; ".join(sentence),
+            "summary": fitted["summary"],
             "converged": bool(fit.converged[c]),
             "theta": dict(zip(PARAM_NAMES, map(float, np.asarray(fit.theta[c])))),
             "nuisance": nuisance,
@@ -466,9 +457,11 @@ def diagnose_effects(
     track: float | None = None, joint: bool = True, bounds: Bounds | None = None, max_steps: int = 40,
     min_shrink: float = MIN_SHRINK,
 ) -> dict[str, Any]:
-    """``{"ranking", "combination", "base_refit", "verdict", "track"}``: the ranking, the joint fit of the (up
-    to ``top``) significant effects (``None`` unless two or more), the reference's shrink (:func:`base_refit`),
-    a sentence, and the restart filter's level both used (tuned on ``train`` unless given). One predictor per
+    """``{"ranking", "combination", "base_refit", "verdict", "final", "track"}``: the ranking, the joint fit of the
+    (up to ``top``) significant effects (``None`` unless two or more), the reference's shrink (:func:`base_refit`),
+    a sentence, the best significant effect's size re-identified on both flights (jointly only, else ``None``;
+    :func:`~jaxheli.gap.final_fit.final_fit`), and the restart filter's level both used (tuned on ``train``
+    unless given). One predictor per
     flight (:func:`predictor_pair`) serves every fit. With ``top > 1`` the single fits are padded to the joint
     fit's width (:func:`~jaxheli.effects.registry.joint_shape`), so both run through one compiled solver;
     ``joint``, ``bounds``, ``max_steps`` and ``min_shrink`` as in :func:`rank_effects`."""
@@ -481,8 +474,10 @@ def diagnose_effects(
     combination = (combine_effects(base_theta, train, validate, chosen, ranking=ranking, shape=shape, joint=joint,
                                    bounds=bounds, max_steps=max_steps, min_shrink=min_shrink)
                    if len(chosen) > 1 else None)
+    best = next((e for e in ranking if e["significant"]), None)
+    final = final_fit(train, validate, best, box) if best is not None and box is not None else None
     return {"ranking": ranking, "combination": combination, "base_refit": refit, "verdict": verdict(ranking, refit),
-            "track": float(train.track)}
+            "final": final, "track": float(train.track)}
 
 
 def verdict(ranking: list[dict[str, Any]], refit: dict[str, Any] | None = None) -> str:
