@@ -1,12 +1,14 @@
 """Blind benchmark of the effect diagnosis: every effect kind plus the effect-free control, N seeds each.
 
-Each trial's base model is identified by PEM on its contaminated training flight (never the truth); the
+Each trial's base model is identified by PEM on its contaminated training flight (never the truth), and on the
+first ``--iwo-seeds`` seeds of every kind also by IWO + polish (reported beside PEM on the same trials); the
 scenario (truth model, pilot style, noise, effect strength) cycles with the seed (:func:`jaxheli.gap.blind.
 scenario`). Writes ``OUT/blind.json`` (per-trial records and the summary) and ``OUT/blind.md`` (per kind:
-top-1 and in-tie-set % and median magnitude error over all, detectable and identifiable trials, median shrink vs
-the oracle; false-positive %), both after every trial. Usage::
+top-1 and in-tie-set % and median magnitude error over all, detectable and identifiable trials, the training
+fit's and the oracle's magnitude error, median shrink vs the oracle; false-positive %), both after every trial.
+Usage::
 
-    python benchmarks/blind_diagnosis.py [--seeds 20] [--kinds input_delay none ...] [--pem-steps 100] [--workers 2] [--out results/blind]
+    python benchmarks/blind_diagnosis.py [--seeds 20] [--iwo-seeds 3] [--kinds input_delay none ...] [--pem-steps 100] [--workers 2] [--out results/blind]
 """
 
 from __future__ import annotations
