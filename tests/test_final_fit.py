@@ -29,8 +29,8 @@ def test_stacked_flights_are_their_residuals_one_after_the_other():
     train, validate = predictor_pair(TABLE2, *_drag_flights())
     eta = augmented.no_effect(OUT)
     both = Stacked((train, validate))
-    np.testing.assert_array_equal(np.asarray(both.residuals(TABLE2, eta)),
-                                  np.r_[np.asarray(train.residuals(TABLE2, eta)), np.asarray(validate.residuals(TABLE2, eta))])
+    parts = [np.asarray(p.residuals(TABLE2, eta)) for p in (train, validate)]
+    np.testing.assert_array_equal(np.asarray(both.residuals(TABLE2, eta)), np.concatenate(parts))
     assert both.measured.shape == (train.measured.shape[0] + validate.measured.shape[0], len(OUT))
 
 

@@ -5,13 +5,15 @@ effect strength) and one effect kind at a random realistic magnitude (:func:`sam
 training and a held-out validation flight of the truth plant carrying it (different excitations,
 independent noise) and diagnoses them without being told which. The base model is what a user would have:
 identified on the contaminated training flight (never the truth), in one box that covers both helicopter
-classes (:data:`BOX`): by PEM, or by IWO and its gradient polish (:data:`BASES`, :func:`base_model`). The diagnosis is the library's default: every candidate fitted jointly
-with the base parameters, credited beyond the base re-fitted alone (:func:`~jaxheli.gap.ranking.fit_and_score`)
-or the given base, whichever predicts the validation flight better (:func:`~jaxheli.gap.ranking.yardstick`).
+classes (:data:`BOX`): by PEM, or by IWO and its gradient polish (:data:`BASES`, :func:`base_model`). The
+diagnosis is the library's default: every candidate fitted jointly with the base parameters, credited beyond
+the base re-fitted alone (:func:`~jaxheli.gap.ranking.fit_and_score`) or the given base, whichever predicts the
+validation flight better (:func:`~jaxheli.gap.ranking.yardstick`).
 The oracle is the identified base with the *true* effect, started at its true values and fitted jointly the
 same way; its own magnitude error shows how much of the diagnosis's is the identified base's. The named
-effect's size is then re-identified on both flights (:func:`~jaxheli.gap.final_fit.final_fit`). All trials of a run share the flight length, so each fit compiles once; candidates are fitted in one
-compiled solve, mapped over them.
+effect's size is then re-identified on both flights (:func:`~jaxheli.gap.final_fit.final_fit`). All trials of
+a run share the flight length, so each fit compiles once; candidates are fitted in one compiled solve, mapped
+over them.
 """
 
 from __future__ import annotations
@@ -234,7 +236,8 @@ def run_trial(
         oracle = fx.describe(kind, outputs, np.asarray(fit.z[-1]), np.asarray(fit.stderr[-1]))[0][inj.primary]["value"]
         record.update(estimate=reported["value"], stderr=reported["stderr"],
                       magnitude_error=_relative_error(reported["value"], inj.value), estimate_train=trained["value"],
-                      magnitude_error_train=_relative_error(trained["value"], inj.value), shrink_pct=entry["shrink_pct"],
+                      magnitude_error_train=_relative_error(trained["value"], inj.value),
+                      shrink_pct=entry["shrink_pct"],
                       oracle_estimate=oracle, oracle_magnitude_error=_relative_error(oracle, inj.value))
     return record
 
@@ -262,11 +265,11 @@ def run_blind(
     workers: int = 1,
     **options: Any,
 ) -> list[dict[str, Any]]:
-    """Diagnose each trial (a :class:`Trial` or ``(kind, seed)``) blind (:func:`run_trial` with ``options``); one
-    record per trial, in the order of ``trials``. ``workers > 1`` runs trials in that many processes (each a trial at a time, in
-    float64, each started on a core of its own when the machine has that many, :func:`_worker_cores`). A progress
-    bar advances per trial and ``on_trial(records_so_far)`` runs after each, e.g. to save (records finished so far,
-    in the order of ``trials``)."""
+    """Diagnose each trial (a :class:`Trial` or ``(kind, seed)``) blind (:func:`run_trial` with ``options``);
+    one record per trial, in the order of ``trials``. ``workers > 1`` runs trials in that many processes (each a
+    trial at a time, in float64, each started on a core of its own when the machine has that many,
+    :func:`_worker_cores`). A progress bar advances per trial and ``on_trial(records_so_far)`` runs after each,
+    e.g. to save (records finished so far, in the order of ``trials``)."""
     done: dict[int, dict[str, Any]] = {}
 
     def finished(i: int, record: dict[str, Any]) -> None:
