@@ -382,8 +382,8 @@ def _subset(rows: list[dict[str, Any]], label: str) -> dict[str, Any]:
 def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
     """Per kind: trials, top-1 % and in-tie-set %, over all trials, over the detectable ones (oracle shrink
     >= :data:`DETECTABLE_PCT`) and over the identifiable ones (:func:`identifiable`), with the median relative
-    magnitude error of each subset (the diagnosis's and the oracle's), and the median shrink vs oracle %
-    (detectable); plus the false-positive % on effect-free flights."""
+    magnitude error of each subset (the diagnosis's, its training fit's and the oracle's), and the median shrink
+    vs oracle % (detectable); plus the false-positive % on effect-free flights."""
     table = {}
     for kind in dict.fromkeys(r["kind"] for r in records):
         rs = [r for r in records if r["kind"] == kind]
@@ -466,7 +466,7 @@ def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: in
     out.mkdir(parents=True, exist_ok=True)
 
     def save(records: list[dict[str, Any]]) -> dict[str, Any]:
-        summary = summarise_bases(records, iwo_seeds)
+        summary = summarise_bases(records, min(iwo_seeds, seeds))
         summary["runtime_s"] = time.perf_counter() - t0
         summary["settings"] = settings
         summary["complete"] = len(records) == len(trials)

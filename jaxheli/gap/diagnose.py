@@ -33,6 +33,7 @@ from ..effects import registry as fx
 from ..effects.plant import no_effect
 from .consistency import check
 from .compare import frequency_comparison, localise_prediction
+from .fit_effect import effect_eta as effect_eta
 from .predictor import TRACK, Predictor, make_predictor
 from .ranking import diagnose_effects, predictor_pair
 
@@ -51,23 +52,6 @@ def shared_outputs(train: FlightData, validate: FlightData) -> tuple[str, ...]:
         raise ValueError(f"{train.source} {train.output_names} and {validate.source} {validate.output_names} "
                          f"share no model output channel that varies")
     return names
-
-
-def effect_eta(
-    effect: str, params: dict[str, dict[str, float]], outputs: tuple[str, ...], nuisance: dict[str, float] | None = None,
-) -> Float[np.ndarray, "E"]:
-    """``eta`` of a ranking entry: its fitted ``params`` (as :func:`~jaxheli.effects.registry.describe` names them)
-    and ``nuisance`` values (by name, :func:`~jaxheli.effects.registry.nuisance`) on the no-effect vector;
-    ``effect`` may be a combination ``"a+b"``."""
-    eta = no_effect(outputs)
-    for p in fx.nuisance(outputs):
-        eta[p.slot] = (nuisance or {}).get(p.name, eta[p.slot])
-    for part in effect.split("+"):
-        for p in fx.params(part, outputs):
-            if p.name not in params:
-                raise ValueError(f"effect {effect!r}: fitted parameter {p.name!r} missing from its entry")
-            eta[p.slot] = params[p.name]["value"]
-    return eta
 
 
 def entry_theta(entry: dict[str, Any], theta: Float[np.ndarray, "40"]) -> Float[np.ndarray, "40"]:

@@ -30,7 +30,7 @@ from ..bounds import Bounds
 from ..effects import registry as fx
 from ..effects.plant import no_effect
 from ..model import PARAM_NAMES
-from .fit_effect import fit_candidates, with_reference
+from .fit_effect import effect_eta, fit_candidates, fitted_nuisance, with_reference
 from .predictor import Predictor
 
 
@@ -58,25 +58,16 @@ def final_fit(
     ``{"effect", "params", "where", "summary", "at_bound", "evidence_z", "rss", "steps", "theta", "nuisance"}``
     (:func:`~jaxheli.effects.registry.report`; ``rss`` over both flights)."""
     outputs = train.outputs
-    names = entry["effect"].split("+")
-    index, start, lower, upper = fx.candidate_arrays(names, outputs, combine=True)
-    fitted = np.array([entry["params"][p.name]["value"] for e in names for p in fx.params(e, outputs)])
-    start[0, : fitted.size] = np.clip(fitted, lower[0, : fitted.size], upper[0, : fitted.size])
+    index, start, lower, upper = fx.candidate_arrays(entry["effect"].split("+"), outputs, combine=True)
     cand = jax.tree.map(lambda a: a[1:], with_reference(index, start, lower, upper, len(no_effect(outputs)),
                                                          fx.nuisance_arrays(outputs)))
-    ps = fx.nuisance(outputs)
-    first = np.array(cand.start)
-    tail = first.shape[1] - len(ps)
-    for j, p in enumerate(ps):
-        if p.name in entry.get("nuisance", {}):
-            first[0, tail + j] = np.clip(entry["nuisance"][p.name], cand.lower[0, tail + j], cand.upper[0, tail + j])
-    cand = dataclasses.replace(cand, start=jnp.asarray(first))
+    eta = np.r_[effect_eta(entry["effect"], entry["params"], outputs, entry.get("nuisance")), 0.0]
+    cand = dataclasses.replace(cand, start=jnp.clip(jnp.asarray(eta)[cand.index], cand.lower, cand.upper))
     theta = jnp.asarray([entry["theta"][n] for n in PARAM_NAMES])
     fit = fit_candidates(Stacked((train, validate)), theta, jnp.asarray(no_effect(outputs)), cand, max_steps,
                          box)
     value = np.asarray(fit.z[0])
-    values = dict(zip((p.name for p in ps), value[tail:]))
-    return {"effect": entry["effect"], **fx.report(entry["effect"], outputs, value, np.asarray(fit.stderr[0])),
-            "rss": float(fit.rss[0]), "steps": int(fit.steps[0]),
+    report = fx.report(entry["effect"], outputs, value, np.asarray(fit.stderr[0]))
+    return {"effect": entry["effect"], **report, "rss": float(fit.rss[0]), "steps": int(fit.steps[0]),
             "theta": dict(zip(PARAM_NAMES, map(float, np.asarray(fit.theta[0])))),
-            "nuisance": {k: float(v) for k, v in values.items() if k in entry.get("nuisance", {})}}
+            "nuisance": fitted_nuisance(value, outputs, report["params"])}

@@ -25,6 +25,8 @@ channels), i.e. counting effective samples ``n_eff = N_res (1 - r1) / (1 + r1)``
 
 from __future__ import annotations
 
+from typing import Any
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -35,6 +37,8 @@ from .._types import Array, Float, Int
 from .._xla import QUICK_COMPILE
 from ..bounds import Bounds
 from ..cost import nmse
+from ..effects import registry as fx
+from ..effects.plant import no_effect
 from ..model import N_PARAMS
 from ..optim.pem import least_squares_solver
 from .predictor import Predictor
@@ -43,6 +47,32 @@ from .predictor import Predictor
 def embed(base: Float[Array, "E"], index: Int[Array, "K"], z: Float[Array, "K"]) -> Float[Array, "E"]:
     """``eta``: ``base`` with the slots ``index`` set to ``z`` (slot ``E`` is a dummy that is dropped)."""
     return jnp.concatenate([base, jnp.zeros(1, base.dtype)]).at[index].set(z)[:-1]
+
+
+def effect_eta(
+    effect: str, params: dict[str, dict[str, float]], outputs: tuple[str, ...],
+    nuisance: dict[str, float] | None = None,
+) -> Float[np.ndarray, "E"]:
+    """``eta`` of a ranking entry: its fitted ``params`` (as :func:`~jaxheli.effects.registry.describe` names them)
+    and ``nuisance`` values (by name, :func:`~jaxheli.effects.registry.nuisance`) on the no-effect vector;
+    ``effect`` may be a combination ``"a+b"``."""
+    eta = no_effect(outputs)
+    for p in fx.nuisance(outputs):
+        eta[p.slot] = (nuisance or {}).get(p.name, eta[p.slot])
+    for part in effect.split("+"):
+        for p in fx.params(part, outputs):
+            if p.name not in params:
+                raise ValueError(f"effect {effect!r}: fitted parameter {p.name!r} missing from its entry")
+            eta[p.slot] = params[p.name]["value"]
+    return eta
+
+
+def fitted_nuisance(value: np.ndarray, outputs: tuple[str, ...], params: dict[str, Any]) -> dict[str, float]:
+    """The nuisance parameters a row fitted in its trailing columns (:func:`with_reference`),
+    by name, but those among the effect's own ``params``."""
+    ps = fx.nuisance(outputs)
+    tail = np.asarray(value, np.float64)[len(value) - len(ps):]
+    return {p.name: float(v) for p, v in zip(ps, tail) if p.name not in params}
 
 
 class Candidates(eqx.Module):

@@ -51,7 +51,7 @@ from ..model import G_SI, PARAM_NAMES
 from ..effects import registry as fx
 from ..effects.plant import no_effect
 from .final_fit import final_fit
-from .fit_effect import Candidates, Fit, embed, fit_candidates, score, with_reference
+from .fit_effect import Candidates, Fit, embed, fit_candidates, fitted_nuisance, score, with_reference
 from .predictor import Predictor, make_predictor, tune_track
 
 MIN_SHRINK = 10.0
@@ -122,7 +122,7 @@ def shrink_entries(
         value = np.asarray(fit.z[c])
         fitted = fx.report(name, outputs, value, np.asarray(fit.stderr[c]))
         params, bound, z = fitted["params"], fitted["at_bound"], fitted["evidence_z"]
-        nuisance = _nuisance(value, outputs, params) if shared else {}
+        nuisance = fitted_nuisance(value, outputs, params) if shared else {}
         shrink = 100.0 * (total_ref - float(np.mean(gaps[c]))) / total_ref
         se = _paired_se(seg_ref, segs[c], energy)
         d = np.log(seg_ref) - np.log(segs[c])
@@ -153,14 +153,6 @@ def shrink_entries(
                           and abs(e["shrink_pct"] - o["shrink_pct"])
                           < TIE_SIGMA * _paired_se(segs[i + 1], segs[j + 1], energy)]
     return sorted(out, key=lambda e: -e["shrink_pct"])
-
-
-def _nuisance(value: np.ndarray, outputs: tuple[str, ...], params: dict[str, Any]) -> dict[str, float]:
-    """The nuisance parameters a row fitted in its trailing columns (:func:`~jaxheli.gap.fit_effect.with_reference`),
-    by name, but those among the effect's own ``params``."""
-    ps = fx.nuisance(outputs)
-    tail = np.asarray(value, np.float64)[len(value) - len(ps):]
-    return {p.name: float(v) for p, v in zip(ps, tail) if p.name not in params}
 
 
 def yardstick(gaps: np.ndarray, segs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -206,7 +198,7 @@ def base_refit(
         "settled": bool(fit.converged[0]) or progress < SETTLED_PCT,
         "steps": int(fit.steps[0]),
         "theta": dict(zip(PARAM_NAMES, map(float, np.asarray(fit.theta[0])))),
-        "nuisance": _nuisance(np.asarray(fit.z[0]), outputs, {}),
+        "nuisance": fitted_nuisance(np.asarray(fit.z[0]), outputs, {}),
     }
 
 
