@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._json import json_ready
 from .._types import Array, Float
 from ..cost import nmse
 from ..evaluate import resolve_params
@@ -135,7 +136,7 @@ def diagnose(
     shown = [ranked["ranking"][0]] + ([ranked["combination"]] if ranked["combination"] else [])
     gaps = np.asarray(nmse(predictions(theta, preds[1], shown), validate.outputs))
     after = [{"effect": e["effect"], **_gap_block(gap, names)} for e, gap in zip(shown, gaps[1:])]
-    return _json_ready({
+    return json_ready({
         "model": model if isinstance(model, (str, Path)) else "given parameters",
         "flights": {role: _flight_block(f) for role, f in (("train", train), ("validate", validate))},
         "outputs": list(names),
@@ -166,23 +167,6 @@ def _gap_block(gap: np.ndarray, names: tuple[str, ...]) -> dict[str, Any]:
 def _flight_block(flight: FlightData) -> dict[str, Any]:
     return {"source": flight.source, "samples": flight.n_samples, "dt": flight.dt,
             "preprocessing": flight.metadata.get("preprocessing", [])}
-
-
-def _json_ready(value: Any) -> Any:
-    """Nested dicts/lists/tuples of plain Python values; non-finite floats become ``None``."""
-    if isinstance(value, dict):
-        return {str(k): _json_ready(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_ready(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _json_ready(value.tolist())
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return float(value) if np.isfinite(value) else None
-    return value if value is None or isinstance(value, str) else str(value)
 
 
 def write_diagnosis(
