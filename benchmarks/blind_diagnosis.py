@@ -2,7 +2,7 @@
 
 Each trial's base model is identified by PEM on its contaminated training flight (never the truth), and on the
 first ``--iwo-seeds`` seeds of every kind also by IWO + polish (reported beside PEM on the same trials); the
-scenario (truth model, pilot style, noise, effect strength) cycles with the seed (:func:`jaxheli.gap.blind.
+scenario (truth model, pilot style, noise, effect strength) cycles with the seed (:func:`jaxheli.benchmark.blind.
 scenario`). Writes ``OUT/blind.json`` (per-trial records and the summary) and ``OUT/blind.md`` (per kind:
 top-1 and in-tie-set % and median magnitude error over all, detectable and identifiable trials, the training
 fit's and the oracle's magnitude error, median shrink vs the oracle; false-positive %), both after every trial.

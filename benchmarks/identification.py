@@ -5,7 +5,7 @@ a training flight (80 s, the embedded default's excitation: 3-2-1-1s then sweeps
 validation flight of another style and seed (60 s of 3-2-1-1s, unit 0.4 s, a pilot who holds the attitude more
 tightly). Every method identifies on the training flight in the box a user sets for the class (the authors' TREX
 box for Table 2; the TREX box widened to hold half to twice each Table 2 and R-50 parameter for the R-50,
-:data:`jaxheli.gap.blind.BOX`). Reported per run: validation fit % per channel next to the truth model's own on
+:data:`jaxheli.benchmark.blind.BOX`). Reported per run: validation fit % per channel next to the truth model's own on
 the same flight (initial state estimated for both), the largest shortfall, and the share of identifiable
 parameters within 3 Cramer-Rao standard errors of the truth.
 
@@ -38,7 +38,7 @@ import numpy as np
 
 import jaxheli
 from jaxheli.data.preprocess import split
-from jaxheli.gap.blind import BOX
+from jaxheli.benchmark.blind import BOX
 from jaxheli.gap.prepare import prepare
 from jaxheli.identify import METHODS, identify, validation_block
 from jaxheli.io.paths import data_file

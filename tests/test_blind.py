@@ -10,7 +10,7 @@ import pytest
 
 from jaxheli._affinity import cores
 from jaxheli.effects import plant as augmented
-from jaxheli.gap.blind import (
+from jaxheli.benchmark.blind import (
     BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, _process_on, _worker_cores, base_model, blind_flights, markdown,
     run_blind, sample_injection, scenario, summarise, summarise_bases,
 )
@@ -154,7 +154,7 @@ def _exited(pid: int) -> bool:
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_a_trial_worker_outlives_no_run_that_spawned_it():
     """A worker watching its run (``_exit_with``) stays while the run lives and ends once it is gone."""
-    worker = "import sys; from jaxheli.gap.blind import _exit_with; _exit_with(int(sys.argv[1]), 0.1)"
+    worker = "import sys; from jaxheli.benchmark.blind import _exit_with; _exit_with(int(sys.argv[1]), 0.1)"
     run = ("import os, subprocess, sys, time; "
            f"w = subprocess.Popen([sys.executable, '-c', {worker!r}, str(os.getpid())]); "
            "time.sleep(8); print(w.pid, w.poll() is None)")

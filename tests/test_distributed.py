@@ -160,6 +160,7 @@ def test_launch_local_reports_failure_and_timeout():
 def test_cli_wiring(monkeypatch, capsys, tmp_path):
     import argparse
 
+    from jaxheli.benchmark import trials_scaling
     from jaxheli.cli.bench import add_trials_scaling_parser
 
     seen = {}
@@ -171,7 +172,7 @@ def test_cli_wiring(monkeypatch, capsys, tmp_path):
         return {"trials": kwargs["trials"], "iterations": kwargs["iterations"], "samples": kwargs["samples"],
                 "dtype": kwargs["dtype"], "cores": 2, "rows": rows}
 
-    monkeypatch.setattr(distributed, "trials_scaling", fake)
+    monkeypatch.setattr(trials_scaling, "trials_scaling", fake)
     parser = argparse.ArgumentParser()
     add_trials_scaling_parser(parser.add_subparsers())
     args = parser.parse_args(["trials-scaling", "--trials", "3", "--processes", "1", "2", "--out",

@@ -13,7 +13,7 @@ from jaxheli.effects import registry
 from jaxheli.effects.catalogue import EFFECTS, QUADRATIC_DRAG
 from jaxheli.effects.plant import GUST_STATES, layout, make_plant, no_effect
 from jaxheli.effects.record import Draw, Effect, Group, Param, Registry, Term
-from jaxheli.gap.blind import sample_injection
+from jaxheli.benchmark.blind import sample_injection
 from jaxheli.model import STATE_NAMES, TABLE2, build_ab
 from jaxheli.synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS
 

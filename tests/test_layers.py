@@ -116,3 +116,40 @@ def test_importing_the_library_keeps_the_matplotlib_backend(tmp_path):
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env)
     assert run.returncode == 0, run.stderr[-2000:]
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+BENCHMARK = "jaxheli.benchmark"
+
+
+def _reach(graph: dict[str, set[str]], start: str) -> set[str]:
+    """Every package module ``start`` imports, directly or through others."""
+    seen: set[str] = set()
+    todo = [start]
+    while todo:
+        for nxt in graph[todo.pop()] & graph.keys():
+            if nxt not in seen:
+                seen.add(nxt)
+                todo.append(nxt)
+    return seen
+
+
+def test_the_library_never_imports_the_benchmarks():
+    """Benchmarks (``jaxheli/benchmark/``) sit above the library: only they and the command line import them."""
+    def outside(n: str) -> bool:
+        return not (n == BENCHMARK or n.startswith(BENCHMARK + ".") or _in_cli(n) or n in CLI_IMPORTERS)
+
+    offenders = sorted(n for n, imports in _graph().items()
+                       if outside(n) and any(i == BENCHMARK or i.startswith(BENCHMARK + ".") for i in imports))
+    assert not offenders, f"library modules import jaxheli.benchmark: {offenders}"
+
+
+def test_the_gap_diagnosis_stands_below_or_beside_identify():
+    """No module of ``jaxheli/gap/`` reaches ``jaxheli.identify``, directly or through another module."""
+    graph = _graph()
+    offenders = sorted(n for n in graph if n.startswith("jaxheli.gap") and "jaxheli.identify" in _reach(graph, n))
+    assert not offenders, f"gap modules that reach jaxheli.identify: {offenders}"
+
+
+def test_reach_follows_imports_through_other_modules():
+    graph = {"a": {"b"}, "b": {"c", "numpy"}, "c": set(), "d": {"a"}}
+    assert _reach(graph, "a") == {"b", "c"} and _reach(graph, "c") == set()

@@ -7,8 +7,6 @@ import json
 import os
 from pathlib import Path
 
-from .. import distributed
-
 
 def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``bench`` on the ``jaxheli`` command line."""
@@ -89,8 +87,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_trials_scaling(args: argparse.Namespace) -> int:
-    result = distributed.trials_scaling(trials=args.trials, iterations=args.iterations, samples=args.samples,
-                                        dtype=args.dtype, processes=args.processes, timeout=args.timeout)
+    from ..benchmark.trials_scaling import trials_scaling
+
+    result = trials_scaling(trials=args.trials, iterations=args.iterations, samples=args.samples,
+                            dtype=args.dtype, processes=args.processes, timeout=args.timeout)
     print(f"{result['trials']} trials x {result['iterations']} generations, N={result['samples']}, "
           f"{result['dtype']}, {result['cores']} cores")
     for row in result["rows"]:

@@ -9,7 +9,7 @@ from pathlib import Path
 from ..effects import registry as fx
 from ..evaluate import resolve_params
 from ..flights import DEFAULT_DATA
-from ..gap.blind import KINDS, markdown, run_benchmark
+from ..benchmark.blind import KINDS, markdown, run_benchmark
 from ..gap.compare import localise_model, write_localisation
 from ..gap.consistency import MAX_TRAVEL_M, check, write_check
 from ..gap.diagnose import diagnose, ranking_table, write_diagnosis

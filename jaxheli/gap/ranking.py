@@ -57,7 +57,7 @@ from .predictor import Predictor, make_predictor, tune_track
 MIN_SHRINK = 10.0
 """Default noise floor (%): the smallest held-out shrink that can be significant. Calibrated on effect-free
 flights whose base model is identified the way a user's is (the blind check's controls on seeds 100-119,
-never scored, :func:`~jaxheli.gap.blind.run_trial`): re-identified jointly and credited against the challenged
+never scored, :func:`~jaxheli.benchmark.blind.run_trial`): re-identified jointly and credited against the challenged
 reference, spurious candidates that passed every other test shrank the gap by at most 9.3 % (a quadratic drag),
 so none of the 20 was significant (5 of 20 were with a 3 % floor and no challenge); the blind check calls an
 effect detectable from a 10 % oracle shrink."""

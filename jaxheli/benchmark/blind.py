@@ -45,9 +45,9 @@ from ..model import LOWER, R50_SI, TABLE2, UPPER
 from ..optim.pem import pem
 from ..synth.excitation import Excitation
 from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
-from .final_fit import final_fit
-from .fit_effect import with_reference
-from .ranking import (
+from ..gap.final_fit import final_fit
+from ..gap.fit_effect import with_reference
+from ..gap.ranking import (
     MIN_SHRINK, MIN_Z, base_refit, fit_and_score, predictor_pair, shrink_entries, theta_box, withhold, yardstick,
 )
 
