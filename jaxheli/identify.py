@@ -6,12 +6,13 @@ methods) on its search cost (the paper's Pearson cost by default; Tischler's fre
 frequency fit), polishes when asked (by default on the output error, so gains and offsets are identified),
 computes Cramer-Rao standard errors and 95 % intervals over trials, and scores the result on the training flight
 and, if given, a validation flight (and the truth beside it when it is known). The result object holds
-everything :func:`jaxheli.identify_report.save_result` writes (JSON, NPZ, PNG).
+everything :func:`jaxheli.results.save_result` writes (JSON, NPZ, PNG).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import time
 import warnings
 from collections.abc import Sequence
@@ -145,7 +146,8 @@ def identify(
         data: training record: a flight (its problem is built from ``outputs``, ``segment``, ``hold``, ``g``,
             ``lower``, ``upper``, ``cost``, ``search_precision``), several flights (fitted at once: each its own
             initial state, costs add; :class:`~jaxheli.problem.Records`), or a :class:`~jaxheli.problem.Problem`
-            or :class:`~jaxheli.problem.Records` whose settings replace those arguments.
+            or :class:`~jaxheli.problem.Records` whose settings replace those arguments (one of them given a value
+            other than its default and the problem's own raises a one-line ``ValueError``).
         method: ``"iwo"``, ``"ga"``, ``"pem"``, ``"iwo+polish"`` (IWO, then optimistix on ``polish_objective``),
             ``"freq"`` (frequency responses fitted on Tischler's cost J, :func:`~jaxheli.optim.frequency_fit.
             frequency_fit`), ``"freq+polish"`` (that, then the polish) or ``"iwo+freq+polish"`` (the default: IWO
@@ -189,9 +191,13 @@ def identify(
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if trials < 1 or iterations < 1:
         raise ValueError(f"trials and iterations must be >= 1, got {trials}, {iterations}")
-    problem = data if isinstance(data, (Problem, Records)) else as_problem(
-        data, None, outputs=outputs, segment=segment, hold=hold, g=g, lower=lower, upper=upper,
-        precision=search_precision, cost=cost)
+    given = {"outputs": outputs, "segment": segment, "hold": hold, "g": g, "lower": lower, "upper": upper,
+             "cost": cost, "search_precision": search_precision}
+    if isinstance(data, (Problem, Records)):
+        _refuse_conflicts(data.settings, given)
+        problem = data
+    else:
+        problem = as_problem(data, None, precision=given.pop("search_precision"), **given)
     settings = problem.settings
     t0 = time.perf_counter()
     key = jax.random.PRNGKey(seed)
@@ -317,6 +323,34 @@ def _frequency_block(fits: list[FrequencyFitResult], params: Float[np.ndarray, "
     """Tischler's ``J`` per pair at ``params`` on the frequency fit's bins, and the best trial's fit."""
     best = min(fits, key=lambda f: f.j_average)
     return {**cifer_report(best.targets, params), "fit": best.to_dict()}
+
+
+_SETTING_OF = {"search_precision": "precision"}
+"""``identify``'s argument names that differ from the :class:`~jaxheli.problem.Settings` field they set."""
+
+
+def _refuse_conflicts(settings: Any, given: dict[str, Any]) -> None:
+    """Raise a one-line ``ValueError`` naming every flight setting given to :func:`identify` beside a
+    ``Problem`` that differs both from the argument's default and from the problem's own setting."""
+    defaults = inspect.signature(identify).parameters
+    clash = []
+    for name, value in given.items():
+        default, own = defaults[name].default, getattr(settings, _SETTING_OF.get(name, name))
+        if _same(value, default) or _same(value, own):
+            continue
+        clash.append(f"{name}={value!r} (the problem has {own!r})")
+    if clash:
+        raise ValueError("identify: data is a Problem, whose settings replace " + "; ".join(clash)
+                         + ": build the problem with them (jaxheli.make_problem) or pass the flight")
+
+
+def _same(a: Any, b: Any) -> bool:
+    if a is None or b is None or isinstance(a, str) or isinstance(b, str):
+        return a == b
+    if isinstance(a, (list, tuple)) and all(isinstance(x, str) for x in a):
+        return isinstance(b, (list, tuple)) and tuple(a) == tuple(b)
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return a.shape == b.shape and bool(np.array_equal(a, b))
 
 
 def _known_truth(data: FlightData | Sequence[FlightData] | Problem | Records) -> np.ndarray | None:

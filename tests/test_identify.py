@@ -110,3 +110,19 @@ def test_default_method_polishes_iwo_alone_when_no_pair_is_coherent():
     assert result.method == "iwo+freq+polish" and result.frequency is None
     assert "no (input, output) pair" in result.settings["frequency_skipped"]
     assert result.polish["rounds"][0].get("starts_rss") is None  # IWO's best alone
+
+
+def test_a_problem_with_conflicting_flight_settings_is_refused():
+    """A Problem's settings replace identify's flight settings: one given otherwise is a one-line error naming
+    it; the same value as the problem's, or the default, is no conflict."""
+    from jaxheli.problem import make_problem
+
+    flight = bench_flight(200)
+    problem = make_problem(flight, segment=2.0, outputs=("p", "q"))
+    with pytest.raises(ValueError, match=r"segment=1\.0 \(the problem has 2\.0\).*hold='foh'") as info:
+        identify(problem, method="pem", segment=1.0, hold="foh")
+    assert "\n" not in str(info.value)
+    with pytest.raises(ValueError, match="upper="):
+        identify(problem, method="pem", upper=UPPER + 1.0)
+    result = identify(problem, method="pem", segment=2.0, outputs=["p", "q"], iterations=1, progress=False)
+    assert tuple(result.settings["outputs"]) == ("p", "q") and result.settings["segment"] == 2.0
