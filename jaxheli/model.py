@@ -59,6 +59,22 @@ UPPER = np.array([
 PINNED: tuple[str, ...] = tuple(n for n, lo, hi in zip(PARAM_NAMES, LOWER, UPPER) if lo == hi)
 """Parameters the bounds pin to zero (hover terms that vanish): Lw, Mw, Nw, Yped, Mcol."""
 
+WIDE_LOWER = np.array([
+    -3, -100, -3, -100, -2, -2, 10, -2, -2, -2, 10, -2, 0.01, -2, -2, -2, -2, -50, -300, -3,
+    -5, -3, -30, -10, -30, -300, -10, -60, 0.01, -10, -10, -2, -2, -2, -2, -300, -300, -30, -2, -2,
+], dtype=np.float64)
+"""Lower bounds of the physical ranges of small unmanned helicopters (about 1-100 kg, hingeless or teetering
+rotor, with or without a stabilizer bar), in :data:`PARAM_NAMES` order: speed dampings and stabilities up to a
+few 1/s, flapping springs ``Lb, Ma`` 10-2000 1/s^2, time constants 10 ms to 1 s, the authors' pinned hover terms
+(``Lw, Mw, Nw, Yped, Mcol``) freed, every coupling of either sign. The box a diagnosis widens the base model's
+to before it credits an unmodelled effect, and ``--box wide``."""
+
+WIDE_UPPER = np.array([
+    1, 100, 1, 100, 2, 2, 2000, 2, 2, 2, 2000, 2, 1, 2, 2, 2, 2, 50, 300, 1,
+    5, 3, 30, 10, 30, 300, 10, 60, 1, 10, 10, 2, 2, 2, 2, 300, 300, 30, 2, 2,
+], dtype=np.float64)
+"""Upper bounds of the physical ranges (:data:`WIDE_LOWER`)."""
+
 TABLE2 = np.array([
     -0.32066, 40.21598, -0.93658, -16.1151, -0.00121, -0.47665, 133.6111, 0.0, 0.1, -0.09822,
     104.9063, 0.0, 0.093851, -0.19213, 0.061597, 0.083523, 0.984168, 8.166105, 1.028478, 0.045724,

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from jaxheli.model import (
-    FOOT, LOWER, N_PARAMS, PARAM_NAMES, PINNED, R50_G, R50_HOVER, R50_SI, STATE_NAMES, TABLE2, UPPER,
-    build_ab, output_matrix, params_array, params_dict,
+    FOOT, LOWER, N_PARAMS, PARAM_NAMES, PINNED, R50_G, R50_HOVER, R50_SI, STATE_NAMES, TABLE2, UPPER, WIDE_LOWER,
+    WIDE_UPPER, build_ab, output_matrix, params_array, params_dict,
 )
 
 
@@ -106,3 +106,14 @@ def test_r50_in_si_is_the_feet_model_under_a_velocity_scaling():
     np.testing.assert_allclose(b_si, T @ b_ft, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(np.sort_complex(np.linalg.eigvals(a_si)), np.sort_complex(np.linalg.eigvals(a_ft)),
                                rtol=1e-9, atol=1e-9)
+
+
+def test_the_wide_box_holds_the_authors_box_both_classes_and_frees_every_pinned_term():
+    """The physical ranges contain the authors' box and half to twice every Table 2 and R-50 parameter, and free
+    the hover terms the authors' box pins (R-50's Nw = 2.8 among them)."""
+    assert np.all(WIDE_LOWER <= LOWER) and np.all(WIDE_UPPER >= UPPER)
+    for model in (TABLE2, R50_SI):
+        assert np.all(WIDE_LOWER <= np.minimum(0.5 * model, 2 * model))
+        assert np.all(np.maximum(0.5 * model, 2 * model) <= WIDE_UPPER)
+    pinned = [PARAM_NAMES.index(n) for n in PINNED]
+    assert np.all(WIDE_LOWER[pinned] < 0) and np.all(WIDE_UPPER[pinned] > 0)
