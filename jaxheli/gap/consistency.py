@@ -14,7 +14,8 @@ a module of :mod:`.detectors`:
    record (:data:`MAX_TRAVEL_M`): the integrated velocity of a hover test stays within metres.
 
 Every estimate carries a **1-sigma** uncertainty: Newey-West (autocorrelation-consistent) regression
-standard errors, propagated to ratios by the delta method. A finding is ``significant`` when it differs
+standard errors, propagated to ratios by the delta method; a velocity bias that of the record's integral
+(sensor noise integrated, a bias random walk). A finding is ``significant`` when it differs
 from its nominal value by more than ``3 sigma`` *and* by more than a practical tolerance
 (:data:`~._finding.TOLERANCE`), so long records do not flag harmless deviations. Every lag is reported; it is
 significant beyond :data:`~._finding.LAG_SIGMA` sigma and at least one sample. The yaw rate's pair is reported
