@@ -91,7 +91,7 @@ class Mode:
         root = f"{lam.real:+.4g} +- {lam.imag:.4g}j" if self.oscillatory else f"{lam.real:+.4g}"
         time = (f"doubles in {self.time_to_double:.3g} s" if self.time_to_double is not None
                 else f"halves in {self.time_to_half:.3g} s" if self.time_to_half is not None else "neutral")
-        return (f"{root:>20} 1/s  {self.name:<34} {','.join(self.states):<18} wn {self.natural_frequency:8.4g} rad/s"
+        return (f"{root:>20} 1/s  {self.name:<36} {','.join(self.states):<18} wn {self.natural_frequency:8.4g} rad/s"
                 f"  zeta {self.damping:+.3f}  {time}")
 
     def to_json(self) -> dict[str, object]:
