@@ -48,17 +48,23 @@ class Mode:
         eigenvalue: ``sigma + j omega_d``, 1/s (the member with ``omega_d >= 0`` of a pair).
         name: physical name (:data:`GROUPS`, with the axis or heave/yaw where one dominates).
         participation: each state's share (:data:`jaxheli.model.STATE_NAMES` order), sums to 1.
+        shape: the right eigenvector's magnitudes over its largest (model units; zero where the mode never shows).
     """
 
     eigenvalue: complex
     name: str
     participation: Float[np.ndarray, "13"]
+    shape: Float[np.ndarray, "13"]
 
     @property
     def states(self) -> tuple[str, ...]:
         """States with a share above :data:`DOMINANT`, largest first."""
         order = np.argsort(-self.participation, kind="stable")
         return tuple(STATE_NAMES[i] for i in order if self.participation[i] > DOMINANT)
+
+    def seen_in(self, states: tuple[str, ...] | list[str]) -> bool:
+        """Whether the mode shows in any of ``states`` (its right eigenvector not zero there, to rounding)."""
+        return any(self.shape[STATE_NAMES.index(s)] > 1e-9 for s in states)
 
     @property
     def oscillatory(self) -> bool:
@@ -120,14 +126,16 @@ def modes_of(A: Float[np.ndarray, "13 13"]) -> tuple[Mode, ...]:
     values, left, right = scipy.linalg.eig(A, left=True, right=True)
     share = np.abs(left.conj() * right)  # column i: participation in mode i (scaled per column)
     share = share / share.sum(axis=0, keepdims=True)
-    found = [Mode(complex(values[i]), _name(share[:, i]), share[:, i]) for i in range(values.size)
+    shape = np.abs(right) / np.abs(right).max(axis=0, keepdims=True)
+    found = [Mode(complex(values[i]), _name(share[:, i]), share[:, i], shape[:, i]) for i in range(values.size)
              if values[i].imag >= 0]  # LAPACK returns a real root with imaginary part exactly 0
     return tuple(sorted(found, key=lambda m: (-m.eigenvalue.real, m.eigenvalue.imag)))
 
 
-def fastest_doubling(found: tuple[Mode, ...]) -> Mode | None:
-    """The unstable mode that doubles fastest (``None`` for a stable model)."""
-    unstable = [m for m in found if m.time_to_double is not None]
+def fastest_doubling(found: tuple[Mode, ...], seen_in: tuple[str, ...] | None = None) -> Mode | None:
+    """The unstable mode that doubles fastest, of those that show in the states ``seen_in`` when given (``None``
+    for a stable model)."""
+    unstable = [m for m in found if m.time_to_double is not None and (seen_in is None or m.seen_in(seen_in))]
     return min(unstable, key=lambda m: m.time_to_double) if unstable else None
 
 

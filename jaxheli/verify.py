@@ -15,8 +15,8 @@ channel, and over all runs pooled (the runs' samples concatenated):
 - Pearson's rho and the normalised fit % (:mod:`jaxheli.cost`).
 
 Overall: ``J_rms`` by its formula over every channel; TIC, Pearson and fit % the mean over the channels. The
-model's modes (:mod:`jaxheli.modes`) say how long a run may be: a run longer than the fastest doubling time of an
-unstable mode measures the start's error grown, not the model.
+model's modes (:mod:`jaxheli.modes`) say how long a run may be: a run longer than the doubling time of an unstable
+mode that shows in the scored channels measures the start's error grown, not the model.
 """
 
 from __future__ import annotations
@@ -37,6 +37,7 @@ from .model import G_SI
 from .modes import Mode, fastest_doubling, modes
 from .plots import plot_time_domain
 from .problem import make_problem
+from .sim.discretize import Hold
 
 RUN_LENGTHS: tuple[float | None, ...] = (5.0, 10.0, None)
 """Run lengths, s, of the book's practice (``None``: the whole window as one run)."""
@@ -102,8 +103,8 @@ class Verification:
 
 
 def verify(
-    params, flight: FlightData, *, run_length: float | None = 5.0, outputs: tuple[str, ...] | None = None,
-    hold: str = "zoh", g: float = G_SI,
+    params: str | Path | np.ndarray | dict, flight: FlightData, *, run_length: float | None = 5.0,
+    outputs: tuple[str, ...] | None = None, hold: Hold = "zoh", g: float = G_SI,
 ) -> Verification:
     """Verify ``params`` (anything :func:`jaxheli.evaluate.resolve_params` takes) on ``flight`` in runs of
     ``run_length`` s (``None``: one run over the whole window; a window shorter than a run is one run).
@@ -126,7 +127,7 @@ def verify(
                      chans, spread)
     found = modes(theta, g)
     length = (spans[0][1] - spans[0][0] - 1) * flight.dt
-    notes.extend(_growth_note(fastest_doubling(found), length, whole=spans == [(0, flight.n_samples)]))
+    notes.extend(_growth_note(fastest_doubling(found, chans), length, whole=spans == [(0, flight.n_samples)]))
     return Verification(flight.source, chans, run_length, dict(zip(chans, map(float, spread))), runs, pooled, found,
                         tuple(notes))
 
@@ -151,7 +152,7 @@ def _cut(flight: FlightData, a: int, b: int) -> FlightData:
     return flight.replace(time=flight.time[a:b], inputs=flight.inputs[a:b], outputs=flight.outputs[a:b])
 
 
-def _run(theta: np.ndarray, part: FlightData, chans: tuple[str, ...], spread: np.ndarray, hold: str, g: float) -> Run:
+def _run(theta: np.ndarray, part: FlightData, chans: tuple[str, ...], spread: np.ndarray, hold: Hold, g: float) -> Run:
     """One run simulated from its least-squares start with output bias, and its scores."""
     start, y = biased_start_outputs(make_problem(part, outputs=chans, hold=hold, g=g), theta)
     meas = part.select(chans).outputs
@@ -173,7 +174,7 @@ def _scores(sim: np.ndarray, meas: np.ndarray, chans: tuple[str, ...], spread: n
 
 
 def _growth_note(mode: Mode | None, length: float, whole: bool) -> list[str]:
-    """A note when the fastest unstable mode doubles within a run."""
+    """A note when the fastest unstable mode seen in the channels doubles within a run."""
     if mode is None or mode.time_to_double >= length:
         return []
     lam = mode.eigenvalue

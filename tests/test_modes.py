@@ -37,7 +37,8 @@ def test_table2_heave_root_and_yaw_block_by_hand():
     yaw = [m for m in found if m.name.startswith("yaw-heave (yaw)")]
     assert [m.eigenvalue.real for m in yaw] == pytest.approx(roots)
     assert all(set(m.states) == {"r", "r_fb"} for m in yaw)
-    assert fastest_doubling(found) is heave
+    assert fastest_doubling(found) is heave and heave.seen_in(("w",)) and not heave.seen_in(("u", "p", "r"))
+    assert fastest_doubling(found, ("u", "v", "p", "q", "phi", "theta", "r")) is None  # w feeds none of them
 
 
 def test_oscillatory_yaw_pair_frequency_damping_and_time_to_half():

@@ -46,12 +46,12 @@ def print_verification(v, model: str) -> None:
     from ..verify import J_RMS_GUIDE, TIC_GUIDE
 
     runs = "one run over the whole window" if v.run_length is None else f"{len(v.runs)} run(s) of {v.run_length:g} s"
-    print(f"{model} on {v.source}: {runs}, each from its least-squares state and output bias; pooled scores "
-          "(J_rms weights W = 1/std^2)")
+    print(f"{model} on {v.source} ({v.runs[0].start_s:.6g}-{v.runs[-1].end_s:.6g} s): {runs}, each from its "
+          "least-squares state and output bias; pooled scores (J_rms weights W = 1/std^2)")
     chans = [*v.channels, "overall"]
-    print("  " + " " * 18 + "".join(f"{c:>9}" for c in chans))
-    for key, label, fmt in (("tic", f"TIC (<= {TIC_GUIDE:g})", "9.3f"), ("j_rms", f"J_rms (<= {J_RMS_GUIDE:g})", "9.3f"),
-                            ("pearson", "Pearson", "9.3f"), ("fit_percent", "fit %", "9.1f")):
+    print("  " + " " * 18 + "".join(f"{c:>10}" for c in chans))
+    for key, label, fmt in (("tic", f"TIC (<= {TIC_GUIDE:g})", "10.3f"), ("j_rms", f"J_rms (<= {J_RMS_GUIDE:g})", "10.4g"),
+                            ("pearson", "Pearson", "10.3f"), ("fit_percent", "fit %", "10.4g")):
         print(f"  {label:<18}" + "".join(f"{v.pooled[key][c]:{fmt}}" for c in chans))
     for note in v.notes:
         print(f"  note: {note}")
