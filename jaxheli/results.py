@@ -80,8 +80,8 @@ def save_result(
 
     Writes ``result.json`` (with each flight's source, preprocessing steps and load warnings under
     ``provenance``, the model's ``modes`` (:func:`result_modes`) and the parameters on a bound, ``at_bounds``
-    (:func:`result_at_bounds`)), ``result.npz``, ``train_flight.npz`` / ``validate_flight.npz`` (the flights as the fit and
-    the scores saw them; further training records as ``train_flight_2.npz``, ... listed in
+    (:func:`result_at_bounds`)), ``result.npz``, ``train_flight.npz`` / ``validate_flight.npz`` (the flights as the
+    fit and the scores saw them; further training records as ``train_flight_2.npz``, ... listed in
     ``data["train_records"]``) and the PNG plots (time-domain verification per record, convergence, and for the
     frequency methods flight against model frequency responses).
     """

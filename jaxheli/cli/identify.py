@@ -171,9 +171,9 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         print(f"truth within {cr['k']:g} Cramer-Rao standard errors: {len(cr['within'])} of "
               f"{len(cr['identifiable'])} identifiable parameters ({100 * cr['fraction']:.0f} %)")
     print_modes(result_modes(result))
-    bounded = result_at_bounds(result)
+    bounded = ", ".join(f"{a.name} {a.value:.4g} ({a.side} {a.bound:g})" for a in result_at_bounds(result))
     print(f"parameters on a bound of the search box (within {100 * TOLERANCE:g} % of its width; the box, not the "
-          "flight, set them): " + (", ".join(f"{a.name} {a.value:.4g} ({a.side} {a.bound:g})" for a in bounded) if bounded else "none"))
+          f"flight, set them): {bounded or 'none'}")
     print(f"fit: {result.seconds:.1f} s")
     for path in save_result(result, out, train, validate):
         print(f"wrote {path}")

@@ -50,8 +50,9 @@ def print_verification(v, model: str) -> None:
           "least-squares state and output bias; pooled scores (J_rms weights W = 1/std^2)")
     chans = [*v.channels, "overall"]
     print("  " + " " * 18 + "".join(f"{c:>10}" for c in chans))
-    for key, label, fmt in (("tic", f"TIC (<= {TIC_GUIDE:g})", "10.3f"), ("j_rms", f"J_rms (<= {J_RMS_GUIDE:g})", "10.4g"),
-                            ("pearson", "Pearson", "10.3f"), ("fit_percent", "fit %", "10.4g")):
+    rows = (("tic", f"TIC (<= {TIC_GUIDE:g})", "10.3f"), ("j_rms", f"J_rms (<= {J_RMS_GUIDE:g})", "10.4g"),
+            ("pearson", "Pearson", "10.3f"), ("fit_percent", "fit %", "10.4g"))
+    for key, label, fmt in rows:
         print(f"  {label:<18}" + "".join(f"{v.pooled[key][c]:{fmt}}" for c in chans))
     for note in v.notes:
         print(f"  note: {note}")

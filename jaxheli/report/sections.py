@@ -108,8 +108,8 @@ def parameters(results: Sequence[ResultSource]) -> Html:
     return section("parameters", TITLES["parameters"],
                    tag("p", "SI units (m, s, rad). 95% interval: t-interval of the trial mean (needs 2 or more "
                        "trials); std. error: Cramer-Rao bound at the optimum (inf: not identifiable from the flight). "
-                       f"At a bound: within {100 * BOUND_TOLERANCE:g} % of the search box's width from it; the box, not "
-                       "the flight, set that value, and its interval and standard error say nothing of it."),
+                       f"At a bound: within {100 * BOUND_TOLERANCE:g} % of the search box's width from it; the box, "
+                       "not the flight, set that value, and its interval and standard error say nothing of it."),
                    table(head, rows))
 
 
