@@ -20,7 +20,9 @@ from .synth.excitation import Excitation as Excitation, doublet as doublet, mult
 from .synth.excitation import sweep as sweep, three_two_one_one as three_two_one_one
 from .data.flight import FlightData as FlightData, FlightDataError as FlightDataError
 from .identify import IdentificationResult as IdentificationResult, identify as identify
-from .sim.initial_state import estimate_x0 as estimate_x0
+from .sim.initial_state import Start as Start, estimate_start as estimate_start, estimate_x0 as estimate_x0
+from .at_bounds import AtBound as AtBound, at_bounds as at_bounds
+from .modes import Mode as Mode, modes as modes
 from .io import DEFAULT_PX4 as DEFAULT_PX4, DEFAULT_ULOG as DEFAULT_ULOG, load as load, load_ulog as load_ulog
 from .io import save_csv as save_csv, save_npz as save_npz
 from .data.plausible import check_plausible as check_plausible
@@ -56,6 +58,7 @@ from .data.preprocess import detrend as detrend, from_samples as from_samples, l
 from .data.preprocess import resample as resample, split as split, trim as trim
 from .report import build_report as build_report, write_report as write_report
 from .results import save_result as save_result
+from .verify import Verification as Verification, save_verification as save_verification, verify as verify
 from .sim.simulate import Simulator as Simulator, make_simulator as make_simulator, simulate as simulate
 from .synth.piloted import Pilot as Pilot, default_flight as default_flight, piloted_flight as piloted_flight
 

@@ -15,7 +15,7 @@ from .cost import metrics, search_cost
 from .data.flight import FlightData
 from .model import G_SI, N_PARAMS, N_STATES, PARAM_NAMES, TABLE2, params_array
 from .problem import Problem, Records, as_problem, make_problem, parts
-from .sim.initial_state import estimate_x0
+from .sim.initial_state import Start, estimate_start, estimate_x0
 from .sim.simulate import Simulator
 
 NAMED_MODELS = {"table2": TABLE2}
@@ -112,6 +112,15 @@ def started_simulator(problem: Problem, theta: Float[np.ndarray, "40"], x0: str 
     if isinstance(x0, str):
         return problem.variant(x0=x0).sim
     return problem.sim.replace_x0(np.asarray(x0))
+
+
+def biased_start_outputs(problem: Problem, theta: Float[np.ndarray, "40"]) -> tuple[Start, Float[np.ndarray, "N k"]]:
+    """``problem``'s outputs ``[N, k]`` under ``theta`` from the least-squares start with a per-channel output bias
+    (:func:`~jaxheli.sim.initial_state.estimate_start`, ``bias=True``), and that start: a run of time-domain
+    verification."""
+    start = estimate_start(theta, problem, bias=True)
+    y = _outputs(started_simulator(problem, theta, start.x0), jnp.asarray(theta))
+    return start, np.asarray(y) + start.bias
 
 
 def simulate_as_scored(

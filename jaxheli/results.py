@@ -9,12 +9,14 @@ from pathlib import Path
 
 import numpy as np
 
+from .at_bounds import AtBound, at_bounds
 from .data.flight import FlightData
 from .data.flight import default_outputs
 from .evaluate import simulate_as_scored
 from .identify import IdentificationResult
 from .io.npz import save_npz
-from .model import INPUT_NAMES, PARAM_NAMES, params_array
+from .model import G_SI, INPUT_NAMES, LOWER, PARAM_NAMES, UPPER, params_array
+from .modes import Mode, modes
 from .optim.frequency_fit import model_step
 from .plots import PRIMARY_PAIRS, plot_convergence, plot_frequency_response, plot_time_domain
 from .spectra import estimate_frequency_response, model_frequency_response
@@ -25,6 +27,17 @@ FLIGHT_FILES: dict[str, str] = {"train": "train_flight.npz", "validate": "valida
 """File names, inside a result folder, of the flights exactly as fitted and scored (after preprocessing; their
 ``metadata["preprocessing"]`` says what was done to the source file). ``result.json``'s ``data`` block names
 them, and ``jaxheli report`` reads them rather than the raw source files."""
+
+
+def result_modes(result: IdentificationResult) -> tuple[Mode, ...]:
+    """The identified model's modes (:func:`jaxheli.modes.modes` under the result's gravity)."""
+    return modes(result.params, result.settings.get("g", G_SI))
+
+
+def result_at_bounds(result: IdentificationResult) -> tuple[AtBound, ...]:
+    """The identified parameters on a bound of the search box (:func:`jaxheli.at_bounds.at_bounds`): the box the
+    settings record, else the authors' (the only box the command line searches)."""
+    return at_bounds(result.params, result.settings.get("lower", LOWER), result.settings.get("upper", UPPER))
 
 
 def _verification(result: IdentificationResult, flight: FlightData, x0, path: Path, title: str) -> Path:
@@ -66,8 +79,9 @@ def save_result(
     """Save ``result`` under ``out_dir``; returns the files written.
 
     Writes ``result.json`` (with each flight's source, preprocessing steps and load warnings under
-    ``provenance``), ``result.npz``, ``train_flight.npz`` / ``validate_flight.npz`` (the flights as the fit and
-    the scores saw them; further training records as ``train_flight_2.npz``, ... listed in
+    ``provenance``, the model's ``modes`` (:func:`result_modes`) and the parameters on a bound, ``at_bounds``
+    (:func:`result_at_bounds`)), ``result.npz``, ``train_flight.npz`` / ``validate_flight.npz`` (the flights as the
+    fit and the scores saw them; further training records as ``train_flight_2.npz``, ... listed in
     ``data["train_records"]``) and the PNG plots (time-domain verification per record, convergence, and for the
     frequency methods flight against model frequency responses).
     """
@@ -78,6 +92,8 @@ def save_result(
     files = [out / "result.json", out / "result.npz"]
     files += [save_npz(f, out / name) for f, name in zip(records, names)]
     content = result.to_json()
+    content["modes"] = [m.to_json() for m in result_modes(result)]
+    content["at_bounds"] = [a.to_json() for a in result_at_bounds(result)]
     content["data"] = {"train": names[0]}
     if len(records) > 1:
         content["data"]["train_records"] = names

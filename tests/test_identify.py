@@ -75,7 +75,7 @@ def test_intervals_are_t_intervals_of_the_trial_mean():
     assert intervals95(trials[:1]) is None
 
 
-def test_identify_and_evaluate_cli_write_the_documented_files(flights, tmp_path):
+def test_identify_and_evaluate_cli_write_the_documented_files(flights, tmp_path, capsys):
     train, validate = flights
     save_npz(train, tmp_path / "train.npz")
     save_npz(validate, tmp_path / "validate.npz")
@@ -84,10 +84,14 @@ def test_identify_and_evaluate_cli_write_the_documented_files(flights, tmp_path)
                str(tmp_path / "validate.npz"), "--iterations", "3", "--trials", "2", "--checkpoint-every", "1",
                "--out", str(out)])
     assert rc == 0
+    printed = capsys.readouterr().out
+    assert "TIC (<= 0.3)" in printed and "J_rms (<= 2)" in printed  # the validation flight verified in 5-s runs
+    assert "modes of A" in printed and "parameters on a bound of the search box" in printed
     progress = json.loads((out / "checkpoint.eqx.json").read_text())
     assert (progress["iteration"], progress["chunk"]) == (3, 1)
     content = json.loads((out / "result.json").read_text())
-    for key in ("method", "seed", "settings", "parameters", "intervals95", "stderr", "train", "validate"):
+    for key in ("method", "seed", "settings", "parameters", "intervals95", "stderr", "train", "validate", "modes",
+                "at_bounds"):
         assert key in content
     assert set(content["parameters"]) == set(PARAM_NAMES)
     for block in ("train", "validate"):

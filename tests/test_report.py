@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 import scipy.stats
 
+from jaxheli.at_bounds import at_bounds
 from jaxheli.synth.excitation import Excitation
 from jaxheli.gap.consistency import check
 from jaxheli.identify import IdentificationResult, intervals95
@@ -181,6 +182,14 @@ def test_flights_as_fitted_not_as_recorded(case, tmp_path):
     assert f"<td>{np.std(train.output('p')):.4g}</td>" in body
 
 
+def test_result_json_lists_modes_and_parameters_on_a_bound(case):
+    content = json.loads((case["folders"]["pem"] / "result.json").read_text())
+    assert [(a["name"], a["side"], a["bound"]) for a in content["at_bounds"]] == [("Mu", "upper", 0.1),
+                                                                                  ("Alat", "lower", -0.1)]
+    assert content["modes"][0]["name"] == "yaw-heave (heave)" and len(content["modes"]) == 10
+    assert content["modes"][0]["time_to_double_s"] == pytest.approx(np.log(2) / TABLE2[PARAM_NAMES.index("Zw")])
+
+
 def test_parameters_table(case):
     body = _section(case["html"], "parameters")
     iwo = case["results"]["iwo"]
@@ -189,11 +198,13 @@ def test_parameters_table(case):
     mean = iwo.trial_params.mean(axis=0)
     rows = re.findall(r"<tr>(.*?)</tr>", body, re.S)[1:]
     assert len(rows) == 40
+    iwo_sides = {a.name: a.side for a in at_bounds(iwo.params)}
     for row, name, truth, value, m, h in zip(rows, PARAM_NAMES, TABLE2, iwo.params, mean, half):
         cells = re.findall(r"<td[^>]*>(.*?)</td>", row)
         assert cells[0].startswith(name)
-        assert cells[1] == f"{truth:.4g}" and cells[2] == "-"  # pem: one trial, no interval
-        assert cells[4] == f"{value:.4g}"
+        side = {"Mu": " (at upper bound)", "Alat": " (at lower bound)"}.get(name, "")  # Table 2 on the box
+        assert cells[1] == f"{truth:.4g}{side}" and cells[2] == "-"  # pem: one trial, no interval
+        assert cells[4] == f"{value:.4g}" + (f" (at {iwo_sides[name]} bound)" if name in iwo_sides else "")
         assert cells[5] == f"[{m - h:.4g}, {m + h:.4g}]"
         assert cells[6] == ("inf" if name in PINNED else f"{0.01 * (abs(value) + 1):.3g}")
 

@@ -1,9 +1,9 @@
-"""Command line: ``jaxheli prepare | identify | evaluate | synth | check | localise | diagnose | blind | bench |
+"""Command line: ``jaxheli prepare | identify | evaluate | verify | synth | check | localise | diagnose | blind | bench |
 trials-scaling | report`` (``jaxheli COMMAND --help``).
 
 Each module registers the parsers of one command group and holds their handlers, which parse arguments, call
 the library and print or write: :mod:`~jaxheli.cli.prepare` (prepare), :mod:`~jaxheli.cli.identify` (identify,
-evaluate, synth), :mod:`~jaxheli.cli.gap` (check, localise, diagnose, blind), :mod:`~jaxheli.cli.bench` (bench,
+evaluate, synth), :mod:`~jaxheli.cli.verify` (verify), :mod:`~jaxheli.cli.gap` (check, localise, diagnose, blind), :mod:`~jaxheli.cli.bench` (bench,
 trials-scaling), :mod:`~jaxheli.cli.report` (report); :mod:`~jaxheli.cli._options` holds the options several
 commands share.
 """
@@ -18,6 +18,7 @@ from .gap import add_blind_parser, add_check_parser, add_diagnose_parser, add_lo
 from .identify import add_evaluate_parser, add_identify_parser, add_synth_parser
 from .prepare import add_prepare_parser
 from .report import add_report_parser
+from .verify import add_verify_parser
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -28,7 +29,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--float32", action="store_true", help="compute in float32 (faster; default float64)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (add_prepare_parser, add_identify_parser, add_evaluate_parser, add_synth_parser, add_check_parser,
+    for add in (add_prepare_parser, add_identify_parser, add_evaluate_parser, add_verify_parser, add_synth_parser,
+                add_check_parser,
                 add_localise_parser, add_diagnose_parser, add_blind_parser, add_bench_parser, add_trials_scaling_parser,
                 add_report_parser):
         add(sub)

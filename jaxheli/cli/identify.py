@@ -11,6 +11,7 @@ from ..flights import DEFAULT_DATA
 from ..identify import METHODS
 from ..optim.polish import POLISH_OBJECTIVES
 from ._options import add_load_options, add_sim_options, outputs, read_flight, sim_options
+from .verify import print_modes, print_verification
 
 
 def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -112,7 +113,9 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 def _cmd_identify(args: argparse.Namespace) -> int:
     from ..identify import identify
-    from ..results import save_result
+    from ..at_bounds import TOLERANCE
+    from ..results import result_at_bounds, result_modes, save_result
+    from ..verify import verify
 
     if args.checkpoint_every < 1:
         raise ValueError(f"--checkpoint-every: must be >= 1 generation, got {args.checkpoint_every}")
@@ -150,6 +153,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
                        truth.get("validate"))
         _print_metrics("validation flight, from rest (the paper)", result.validate["zero_initial_state"],
                        (truth.get("validate") or {}).get("zero_initial_state"))
+        scored = tuple(c for c in result.settings["outputs"] if c in validate.output_names) or None
+        print_verification(verify(result.params, validate, outputs=scored, hold=args.hold, g=args.g), args.method)
     if result.polish:
         p = result.polish
         print(f"polish ({p['objective']}): objective {p['objective_before']:.6g} -> {p['objective_after']:.6g}; "
@@ -165,6 +170,10 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         cr = truth["cramer_rao"]
         print(f"truth within {cr['k']:g} Cramer-Rao standard errors: {len(cr['within'])} of "
               f"{len(cr['identifiable'])} identifiable parameters ({100 * cr['fraction']:.0f} %)")
+    print_modes(result_modes(result))
+    bounded = ", ".join(f"{a.name} {a.value:.4g} ({a.side} {a.bound:g})" for a in result_at_bounds(result))
+    print(f"parameters on a bound of the search box (within {100 * TOLERANCE:g} % of its width; the box, not the "
+          f"flight, set them): {bounded or 'none'}")
     print(f"fit: {result.seconds:.1f} s")
     for path in save_result(result, out, train, validate):
         print(f"wrote {path}")

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from ..at_bounds import TOLERANCE as BOUND_TOLERANCE, at_bounds
 from ..cost import metrics as channel_metrics
 from ..data.flight import default_outputs
 from ..evaluate import simulate_as_scored
@@ -91,20 +92,33 @@ def preprocessing_steps(flight: FlightData) -> str:
 
 
 def parameters(results: Sequence[ResultSource]) -> Html:
-    """The 40 parameters in the paper's Table 2 order: value, 95 % interval over trials, standard error."""
+    """The 40 parameters in the paper's Table 2 order: value (marked when on a bound of the search box), 95 %
+    interval over trials, standard error."""
     head = ["parameter"] + [h for r in results for h in (f"{r.label}", "95% interval", "std. error")]
+    bounded = [_at_bounds(r) for r in results]
     rows = []
     for i, name in enumerate(PARAM_NAMES):
         row: list[Any] = [name + (" (pinned)" if name in PINNED else "")]
-        for r in results:
+        for r, on in zip(results, bounded):
             interval = (r.content.get("intervals95") or {}).get(name)
-            row += [num(r.params[i]), "-" if interval is None else f"[{num(interval[0])}, {num(interval[1])}]",
+            value = num(r.params[i]) + (f" (at {on[name]} bound)" if name in on else "")
+            row += [value, "-" if interval is None else f"[{num(interval[0])}, {num(interval[1])}]",
                     num((r.content.get("stderr") or {}).get(name), ".3g")]
         rows.append(row)
     return section("parameters", TITLES["parameters"],
                    tag("p", "SI units (m, s, rad). 95% interval: t-interval of the trial mean (needs 2 or more "
-                       "trials); std. error: Cramer-Rao bound at the optimum (inf: not identifiable from the flight)."),
+                       "trials); std. error: Cramer-Rao bound at the optimum (inf: not identifiable from the flight). "
+                       f"At a bound: within {100 * BOUND_TOLERANCE:g} % of the search box's width from it; the box, "
+                       "not the flight, set that value, and its interval and standard error say nothing of it."),
                    table(head, rows))
+
+
+def _at_bounds(result: ResultSource) -> dict[str, str]:
+    """``{name: side}`` of the result's parameters on a bound: ``result.json``'s ``at_bounds``, or for a result
+    saved without it, those on the authors' box."""
+    listed = result.content.get("at_bounds")
+    found = [a.to_json() for a in at_bounds(result.params)] if listed is None else listed
+    return {a["name"]: a["side"] for a in found}
 
 
 def metrics(results: Sequence[ResultSource]) -> Html:
