@@ -18,9 +18,9 @@ _GYROS = ("p", "q", "r")
 
 
 def _rotation(axis: int, angle: float) -> np.ndarray:
-    """Active rotation by ``angle`` (rad) about body axis ``axis`` (0 x, 1 y, 2 z)."""
+    """Right-handed rotation by ``angle`` (rad) about body axis ``axis`` (0 x, 1 y, 2 z)."""
     c, s = np.cos(angle), np.sin(angle)
-    i, j = [k for k in range(3) if k != axis]
+    i, j = (axis + 1) % 3, (axis + 2) % 3
     R = np.eye(3)
     R[i, i], R[i, j], R[j, i], R[j, j] = c, -s, s, c
     return R
