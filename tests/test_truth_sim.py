@@ -12,6 +12,7 @@ from jaxheli.benchmark import truth as ts
 from jaxheli.benchmark.independent import independent_trial
 from jaxheli.effects import registry as fx
 from jaxheli.model import R50_G, R50_HOVER, R50_SI, TABLE2, build_ab
+from jaxheli.synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS
 
 PACKAGE = Path(ts.__file__).parent
 ALLOWED_FROM_MODEL = {"PARAM_NAMES", "TABLE2", "R50_SI", "R50_HOVER", "LOWER", "UPPER"}
@@ -183,6 +184,11 @@ def test_detectability_is_false_without_an_effect_and_true_for_a_large_one():
         assert (score > 1.0) is expected, score
     none = ts.truth_trial("none", 3, TABLE2, style="regulation", duration=10.0)
     assert none.score == 0.0 and not none.detectable
+
+
+def test_the_logger_reads_the_channels_and_noise_of_the_librarys_synthetic_flights():
+    assert ts.OUTPUTS == DEFAULT_OUTPUTS
+    assert ts.NOISE == {c: DEFAULT_NOISE[c] for c in DEFAULT_OUTPUTS}
 
 
 def test_the_table_names_library_candidates_and_their_parameters():

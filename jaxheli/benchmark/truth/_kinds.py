@@ -78,6 +78,7 @@ class Dice:
 
 
 def _on_axis(axis: int, value: float, default: float) -> tuple[float, ...]:
+    """Per-axis values: ``value`` on ``axis``, ``default`` on the others."""
     return tuple(value if i == axis else default for i in range(len(AXES)))
 
 

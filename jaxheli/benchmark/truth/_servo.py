@@ -32,7 +32,6 @@ class ServoState:
     """A servo chain in motion at internal step ``h`` (s): the pending frames, and position and rate per axis."""
 
     def __init__(self, servo: Servo, h: float) -> None:
-        self.servo = servo
         self.h = h
         self.delay = np.asarray(servo.delay, dtype=int)
         self.pending = np.zeros((int(self.delay.max()) + 1, _AXES))
@@ -62,9 +61,9 @@ class ServoState:
             else:
                 self.position[i] = target[i]
         move = np.clip(self.position - old, -self.rate * self.h, self.rate * self.h)
-        limited = move != self.position - old
+        self.speed = np.where(move != self.position - old, move / self.h, self.speed)
+        self.speed = np.where(np.abs(old + move) > self.limit, 0.0, self.speed)
         self.position = np.clip(old + move, -self.limit, self.limit)
-        self.speed = np.where(limited, move / self.h, self.speed)
         return self.position.copy()
 
 
