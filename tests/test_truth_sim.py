@@ -210,3 +210,16 @@ def test_the_adapter_gives_library_flights_and_passes_seeds_through():
     assert a.eta[next(p.slot for p in fx.params("actuator_lag", ts.OUTPUTS) if p.name == a.primary)] == a.value
     assert a.train.metadata["kind"] == "servo_dynamics" and a.validate.metadata["role"] == "validate"
     assert not np.allclose(a.train.outputs, b.train.outputs)
+
+
+def test_the_blind_check_flies_independent_trials_and_starts_its_oracle_at_the_shared_values():
+    from jaxheli.benchmark.blind import _oracle_row, scenario, trial_flights
+
+    inj, train, validate, right, facts = trial_flights("independent", "drag", 3, scenario(3), duration=8.0, dt=0.05,
+                                                       outputs=DEFAULT_OUTPUTS)
+    assert inj.kind == "quadratic_drag" and right == ("quadratic_drag",) and inj.primary == "Xuu"
+    assert facts["detectable"] == (facts["detectability"] > 1) and train.source != validate.source
+    index, start, lower, upper = _oracle_row(inj.kind, inj, *fx.candidate_arrays(fx.ALL, DEFAULT_OUTPUTS))
+    assert start[0, 0] == pytest.approx(np.clip(inj.value, lower[0, 0], upper[0, 0]))
+    with pytest.raises(ValueError, match="unknown truth simulator"):
+        trial_flights("other", "drag", 3, scenario(3), duration=8.0, dt=0.05, outputs=DEFAULT_OUTPUTS)
