@@ -46,6 +46,8 @@ from ..optim.pem import pem
 from ..synth.excitation import Excitation
 from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
 from ..gap.final_fit import final_fit
+from . import truth as independent_truth
+from .independent import independent_trial
 from ..gap.fit_effect import with_reference
 from ..gap.ranking import (
     MIN_SHRINK, MIN_Z, base_refit, fit_and_score, predictor_pair, shrink_entries, theta_box, withhold, yardstick,
@@ -186,24 +188,52 @@ def base_model(train: FlightData, method: str, seed: int, *, pem_steps: int = 10
     raise ValueError(f"blind trial: unknown base method {method!r}; methods are {BASES}")
 
 
+TRUTHS_SIM: dict[str, tuple[str, ...]] = {"library": KINDS, "independent": independent_truth.KINDS}
+"""Truth simulators of the blind check and the kinds each injects: the library's own piloted flights
+(:func:`blind_flights`) or the independent simulator (:mod:`jaxheli.benchmark.truth`, :func:`trial_flights`)."""
+
+
+def trial_flights(
+    truth: str, kind: str, seed: int, where: Scenario, *, duration: float, dt: float, outputs: tuple[str, ...],
+) -> tuple[Injection, FlightData, FlightData, tuple[str, ...], dict[str, Any]]:
+    """A trial's flights by the ``truth`` simulator (:data:`TRUTHS_SIM`): ``(injection, train, validate, right,
+    facts)``, ``injection`` the library kind the oracle fits at its true values, ``right`` the kinds a correct
+    diagnosis names, ``facts`` what the record adds (the independent simulator's detectability and parts)."""
+    if truth == "library":
+        inj = sample_injection(kind, 7919 * seed + 101 * KINDS.index(kind), outputs, duration, where.strength)
+        train, validate = blind_flights(inj, 7919 * seed + KINDS.index(kind), where, duration=duration, dt=dt)
+        return inj, train, validate, (kind,), {}
+    if truth == "independent":
+        ind = independent_trial(kind, seed, where.theta, style=where.style, noise=where.noise,
+                                strength=where.strength, duration=duration, dt=dt, outputs=outputs)
+        inj = Injection(ind.oracle, ind.eta, 0.0, 1.0, ind.primary, ind.value)
+        return inj, ind.train, ind.validate, ind.candidates, {
+            "oracle_kind": ind.oracle, "parts": list(ind.parts), "right": list(ind.candidates),
+            "detectability": ind.score, "detectable": ind.detectable}
+    raise ValueError(f"blind trial: unknown truth simulator {truth!r}; simulators are {tuple(TRUTHS_SIM)}")
+
+
 def run_trial(
-    kind: str, seed: int, *, base: str = "pem", duration: float = 30.0, dt: float = 0.05, segment: float = 2.0,
-    max_steps: int = 15, pem_steps: int = 100, iterations: int = 1000, min_shrink: float = MIN_SHRINK,
+    kind: str, seed: int, *, base: str = "pem", truth: str = "library", duration: float = 30.0, dt: float = 0.05,
+    segment: float = 2.0, max_steps: int = 15, pem_steps: int = 100, iterations: int = 1000,
+    min_shrink: float = MIN_SHRINK,
 ) -> dict[str, Any]:
     """One blind trial: scenario and injection of ``seed``, flights, base model identified on the training
     flight by ``base`` (:func:`base_model`), joint diagnosis and oracle; the record (verdict, attribution, shrinks,
-    ranking, the named effect's :func:`~jaxheli.gap.final_fit.final_fit`). The magnitude is the one the diagnosis
-    reports for the true kind: re-identified on both flights where it is the named effect, else its training fit
-    (``estimate``, ``magnitude_error``); beside it the training fit's (``estimate_train``,
-    ``magnitude_error_train``) and the oracle's (``oracle_estimate``, ``oracle_magnitude_error``)."""
+    ranking, the named effect's :func:`~jaxheli.gap.final_fit.final_fit`), flown by the ``truth`` simulator
+    (:func:`trial_flights`; ``correct`` when the top candidate is one of the kinds that count as right). The
+    magnitude is the one the diagnosis reports for the true kind (the oracle's): re-identified on both flights
+    where it is the named effect, else its training fit (``estimate``, ``magnitude_error``); beside it the training
+    fit's (``estimate_train``, ``magnitude_error_train``) and the oracle's (``oracle_estimate``,
+    ``oracle_magnitude_error``)."""
     where = scenario(seed)
     outputs = DEFAULT_OUTPUTS
-    inj = sample_injection(kind, 7919 * seed + 101 * KINDS.index(kind), outputs, duration, where.strength)
-    train, validate = blind_flights(inj, 7919 * seed + KINDS.index(kind), where, duration=duration, dt=dt)
+    inj, train, validate, right, facts = trial_flights(truth, kind, seed, where, duration=duration, dt=dt,
+                                                       outputs=outputs)
     theta, ident = base_model(train, base, seed, pem_steps=pem_steps, iterations=iterations, outputs=outputs)
     train_pred, validate_pred = predictor_pair(theta, train, validate, segment=segment)
     *arrays, owner = fx.tried_arrays(fx.ALL, outputs)
-    oracle = _oracle_row(kind, inj, *fx.candidate_arrays(fx.ALL, outputs))
+    oracle = _oracle_row(inj.kind, inj, *fx.candidate_arrays(fx.ALL, outputs))
     arrays = [np.vstack([a, o]) for a, o in zip(arrays, oracle)]
     cand = with_reference(*arrays, pad=len(no_effect(outputs)), shared=fx.nuisance_arrays(outputs))
     box = theta_box(theta, Bounds(*BOX))
@@ -219,21 +249,23 @@ def run_trial(
     final = final_fit(train_pred, validate_pred, best, box) if best is not None else None
     ranking = [{k: v for k, v in e.items() if k != "theta"} for e in ranking]
     top = best["effect"] if best else "none"
-    record = {"kind": kind, "seed": int(seed), "truth": where.truth, "style": where.style, "noise": where.noise,
-              "strength": where.strength, "top": top, "correct": top == kind,
-              "in_tie": top == kind or (best is not None and kind in best["tied_with"]),
+    record = {"kind": kind, "seed": int(seed), "truth_sim": truth, **facts, "truth": where.truth,
+              "style": where.style, "noise": where.noise, "strength": where.strength, "top": top,
+              "correct": top in right,
+              "in_tie": top in right or (best is not None and any(k in best["tied_with"] for k in right)),
               "true_value": inj.value, "primary": inj.primary,
               "oracle_shrink_pct": 100.0 * (1.0 - float(np.mean(gaps[-1]) / np.mean(credit_gaps[1]))),
-              "oracle_evidence_z": (fx.evidence(kind, outputs, np.asarray(fit.z[-1]), np.asarray(fit.stderr[-1]))
-                                    if kind != "none" else None),
+              "oracle_evidence_z": (fx.evidence(inj.kind, outputs, np.asarray(fit.z[-1]), np.asarray(fit.stderr[-1]))
+                                    if inj.kind != "none" else None),
               "base": ident,
               "base_refit": {k: v for k, v in refit.items() if k != "theta"}, "track": float(train_pred.track),
               "ranking": ranking, "final": None if final is None else {k: v for k, v in final.items() if k != "theta"}}
     if inj.primary is not None:
-        entry = next(e for e in ranking if e["effect"] == kind)
+        entry = next(e for e in ranking if e["effect"] == inj.kind)
         trained = entry["params"][inj.primary]
-        reported = final["params"][inj.primary] if top == kind else trained
-        oracle = fx.describe(kind, outputs, np.asarray(fit.z[-1]), np.asarray(fit.stderr[-1]))[0][inj.primary]["value"]
+        reported = final["params"][inj.primary] if top == inj.kind else trained
+        described = fx.describe(inj.kind, outputs, np.asarray(fit.z[-1]), np.asarray(fit.stderr[-1]))[0]
+        oracle = described[inj.primary]["value"]
         record.update(estimate=reported["value"], stderr=reported["stderr"],
                       magnitude_error=_relative_error(reported["value"], inj.value), estimate_train=trained["value"],
                       magnitude_error_train=_relative_error(trained["value"], inj.value),
@@ -356,7 +388,13 @@ def identifiable(record: dict[str, Any]) -> bool:
     stick then shrinks the held-out gap by 40-90 % once its true size is handed in, yet the training flight cannot
     tell it from none (e.g. 1 +- 26 1/stick^2 fitted for a true 65)."""
     z = record.get("oracle_evidence_z")
-    return record["oracle_shrink_pct"] >= DETECTABLE_PCT and z is not None and z >= MIN_Z
+    return detectable(record) and z is not None and z >= MIN_Z
+
+
+def detectable(record: dict[str, Any]) -> bool:
+    """The truth simulator's own verdict where it gives one (the independent simulator's, decided before any fit,
+    :mod:`jaxheli.benchmark.truth`), else the oracle shrink of :data:`DETECTABLE_PCT` or more."""
+    return record["detectable"] if "detectable" in record else record["oracle_shrink_pct"] >= DETECTABLE_PCT
 
 
 def _pct(flags: list[bool]) -> float | None:
@@ -372,7 +410,7 @@ def _subset(rows: list[dict[str, Any]], label: str) -> dict[str, Any]:
     oracle's) of ``rows``, keys suffixed ``label``."""
     return {f"{label}_trials": len(rows), f"top1_{label}_pct": _pct([r["correct"] for r in rows]),
             f"in_tie_{label}_pct": _pct([r.get("in_tie", r["correct"]) for r in rows]),
-            f"magnitude_error_median_{label}": _median([r["magnitude_error"] for r in rows]),
+            f"magnitude_error_median_{label}": _median([r["magnitude_error"] for r in rows if "magnitude_error" in r]),
             f"train_magnitude_error_median_{label}": _median([r["magnitude_error_train"] for r in rows
                                                                if "magnitude_error_train" in r]),
             f"oracle_magnitude_error_median_{label}": _median([r["oracle_magnitude_error"] for r in rows
@@ -390,11 +428,11 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
         row = {"trials": len(rs), "top1_pct": _pct([r["correct"] for r in rs]),
                "in_tie_pct": _pct([r.get("in_tie", r["correct"]) for r in rs])}
         if kind != "none":
-            seen = [r for r in rs if r["oracle_shrink_pct"] >= DETECTABLE_PCT]
+            seen = [r for r in rs if detectable(r)]
             row.update(_subset(seen, "detectable"))
             row.update(_subset([r for r in seen if identifiable(r)], "identifiable"))
-            row["shrink_vs_oracle_pct"] = float(np.median([100.0 * r["shrink_pct"] / r["oracle_shrink_pct"]
-                                                           for r in seen])) if seen else None
+            shrunk = [100.0 * r["shrink_pct"] / r["oracle_shrink_pct"] for r in seen if "shrink_pct" in r]
+            row["shrink_vs_oracle_pct"] = float(np.median(shrunk)) if shrunk else None
         table[kind] = row
     controls = [r for r in records if r["kind"] == "none"]
     fp = _pct([r["top"] != "none" for r in controls])
@@ -447,16 +485,19 @@ def summarise_bases(records: list[dict[str, Any]], seeds: int) -> dict[str, Any]
 
 
 def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: int = 1, iwo_seeds: int = 0,
-                  **options: Any) -> dict[str, Any]:
+                  truth: str = "library", **options: Any) -> dict[str, Any]:
     """Run ``seeds`` blind trials per kind (seeds ``0..seeds-1``, so every kind meets the same scenarios) with a
     PEM base model, and the first ``iwo_seeds`` of them again with an IWO + polish base (:func:`base_model`), in
     ``workers`` processes; write ``OUT/blind.json`` (records, :func:`summarise_bases`) and ``OUT/blind.md`` after
-    every trial."""
-    bad = [k for k in kinds if k not in KINDS]
+    every trial. ``truth`` picks the truth simulator (:data:`TRUTHS_SIM`), whose kinds ``kinds`` are."""
+    if truth not in TRUTHS_SIM:
+        raise ValueError(f"blind benchmark: unknown truth simulator {truth!r}; simulators are {tuple(TRUTHS_SIM)}")
+    bad = [k for k in kinds if k not in TRUTHS_SIM[truth]]
     if bad:
-        raise ValueError(f"blind benchmark: unknown kinds {bad}; kinds are {KINDS}")
+        raise ValueError(f"blind benchmark: unknown kinds {bad} for the {truth} truth; kinds are {TRUTHS_SIM[truth]}")
     t0 = time.perf_counter()
-    settings = {"kinds": list(kinds), "seeds": seeds, "iwo_seeds": iwo_seeds, "workers": workers, **options,
+    settings = {"kinds": list(kinds), "seeds": seeds, "iwo_seeds": iwo_seeds, "workers": workers, "truth": truth,
+                **options,
                 "base_model": "PEM (every trial) or IWO + polish (the first iwo_seeds) on the contaminated "
                               "training flight (blind.BOX), never the truth",
                 "diagnosis": "joint re-identification (default of jaxheli diagnose)"}
@@ -474,4 +515,4 @@ def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: in
         (out / "blind.md").write_text(markdown(summary) + f"\n\nRuntime {summary['runtime_s']:.0f} s.\n")
         return summary
 
-    return save(run_blind(trials, on_trial=save, workers=workers, **options))
+    return save(run_blind(trials, on_trial=save, workers=workers, truth=truth, **options))

@@ -9,7 +9,7 @@ from pathlib import Path
 from ..effects import registry as fx
 from ..evaluate import resolve_params
 from ..flights import DEFAULT_DATA
-from ..benchmark.blind import KINDS, markdown, run_benchmark
+from ..benchmark.blind import TRUTHS_SIM, markdown, run_benchmark
 from ..gap.compare import localise_model, write_localisation
 from ..gap.consistency import MAX_TRAVEL_M, check, write_check
 from ..gap.diagnose import diagnose, ranking_table, write_diagnosis
@@ -84,7 +84,11 @@ def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
 def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``jaxheli blind --seeds N [--kinds ...] --out DIR`` on the CLI's sub-command parsers."""
     p = subparsers.add_parser("blind", help="blind check of the effect diagnosis on synthetic flights")
-    p.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS, help="effect kinds (default all + none)")
+    p.add_argument("--truth", choices=tuple(TRUTHS_SIM), default="library",
+                   help="truth simulator: the library's piloted flights, or the independent one in "
+                        "jaxheli.benchmark.truth (default library)")
+    p.add_argument("--kinds", nargs="+", choices=tuple(dict.fromkeys(k for ks in TRUTHS_SIM.values() for k in ks)),
+                   help="effect kinds of that truth (default all + none)")
     p.add_argument("--seeds", type=int, default=2, help="trials per kind (default 2; the Done-when asks 20)")
     p.add_argument("--duration", type=float, default=30.0, help="flight length, s (default 30)")
     p.add_argument("--dt", type=float, default=0.05, help="sample time, s (default 0.05)")
@@ -165,9 +169,10 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
 
 def _cmd_blind(args: argparse.Namespace) -> int:
-    summary = run_benchmark(args.kinds, args.seeds, args.out, workers=args.workers, iwo_seeds=args.iwo_seeds,
-                            duration=args.duration, dt=args.dt, max_steps=args.max_steps, pem_steps=args.pem_steps,
-                            iterations=args.iterations)
+    kinds = args.kinds or list(TRUTHS_SIM[args.truth])
+    summary = run_benchmark(kinds, args.seeds, args.out, workers=args.workers, iwo_seeds=args.iwo_seeds,
+                            truth=args.truth, duration=args.duration, dt=args.dt, max_steps=args.max_steps,
+                            pem_steps=args.pem_steps, iterations=args.iterations)
     print(markdown(summary))
     print(f"runtime {summary['runtime_s']:.0f} s; wrote {Path(args.out) / 'blind.json'} and blind.md")
     return 0

@@ -1,0 +1,225 @@
+"""The independent truth simulator (jaxheli/benchmark/truth): its isolation from the code it checks, its hover model
+against the library's, each effect against an analytic case, and its detectability verdict."""
+
+import ast
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.signal
+
+from jaxheli.benchmark import truth as ts
+from jaxheli.benchmark.independent import independent_trial
+from jaxheli.effects import registry as fx
+from jaxheli.model import R50_G, R50_HOVER, R50_SI, TABLE2, build_ab
+from jaxheli.synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS
+
+PACKAGE = Path(ts.__file__).parent
+ALLOWED_FROM_MODEL = {"PARAM_NAMES", "TABLE2", "R50_SI", "R50_HOVER", "LOWER", "UPPER"}
+
+
+def _imports(path: Path) -> list[tuple[str, tuple[str, ...]]]:
+    """``(absolute module, imported names)`` of every import in the module at ``path``."""
+    package = "jaxheli.benchmark.truth"
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out += [(alias.name, ()) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = package.rsplit(".", node.level - 1)[0] if node.level else ""
+            module = ".".join(p for p in (base, node.module or "") if p)
+            out.append((module, tuple(alias.name for alias in node.names)))
+    return out
+
+
+def test_the_simulator_imports_nothing_from_jaxheli_but_model_constants():
+    modules = sorted(PACKAGE.glob("*.py"))
+    assert len(modules) >= 8
+    for path in modules:
+        for module, names in _imports(path):
+            if module.startswith("jaxheli.benchmark.truth") or not module.startswith("jaxheli"):
+                continue
+            assert module == "jaxheli.model", f"{path.name} imports {module}"
+            assert set(names) <= ALLOWED_FROM_MODEL, f"{path.name} imports {names} from jaxheli.model"
+
+
+@pytest.mark.parametrize("theta, g", [(TABLE2, 9.81), (R50_SI, 9.81), (R50_HOVER, R50_G)])
+def test_the_hover_model_equals_the_librarys(theta, g):
+    A, B = ts.hover_model(theta, g)
+    A_lib, B_lib = (np.asarray(m) for m in build_ab(theta, g))
+    np.testing.assert_allclose(A, A_lib, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(B, B_lib, rtol=0, atol=1e-12)
+
+
+def test_a_link_delay_shifts_a_step_by_whole_frames():
+    servo = ts.ServoState(ts.Servo(delay=(0, 2, 0, 3)), h=0.01)
+    commands = np.zeros((12, 4))
+    commands[5:] = 0.3
+    reaching = np.array([servo.frame(c) for c in commands])
+    for axis, n in enumerate((0, 2, 0, 3)):
+        np.testing.assert_array_equal(reaching[:, axis], np.roll(commands[:, axis], n) * (np.arange(12) >= n))
+
+
+def test_travel_stops_clip_and_a_rate_limit_ramps_at_its_slope():
+    h = 0.001
+    servo = ts.ServoState(ts.Servo(limit=(0.2, np.inf, np.inf, np.inf), rate=(np.inf, 2.0, np.inf, np.inf)), h)
+    positions = np.array([servo.step(np.array([0.5, 1.0, -0.1, 0.0])) for _ in range(1000)])
+    np.testing.assert_allclose(positions[:, 0], 0.2)
+    t = h * np.arange(1, 1001)
+    np.testing.assert_allclose(positions[:, 1], np.minimum(2.0 * t, 1.0), atol=1e-12)
+    np.testing.assert_allclose(positions[:, 2], -0.1)
+
+
+def test_the_second_order_servo_follows_its_analytic_step_response_with_unit_dc_gain():
+    wn, zeta, h = 20.0, 0.6, 0.002
+    servo = ts.ServoState(ts.Servo(wn=(wn,) * 4, zeta=(zeta,) * 4), h)
+    positions = np.array([servo.step(np.ones(4))[0] for _ in range(1500)])
+    t = h * np.arange(1, 1501)
+    wd = wn * np.sqrt(1 - zeta**2)
+    analytic = 1 - np.exp(-zeta * wn * t) * np.sin(wd * t + np.arccos(zeta)) / np.sqrt(1 - zeta**2)
+    np.testing.assert_allclose(positions, analytic, atol=1e-10)
+    assert abs(positions[-1] - 1.0) < 1e-6
+
+
+def test_dryden_turbulence_has_the_standards_variance_and_spectrum():
+    dryden = ts.Dryden(w20=4.0, altitude=4.0, speed=3.0, span=1.5)
+    h = 0.02
+    gusts = dryden.sample(2**18, h, np.random.default_rng(1))
+    sigmas = np.array(dryden.sigmas())
+    # stationary variance of each discretised filter (white noise of intensity pi): sigma^2 up to the ZOH error
+    for j, sigma in enumerate(sigmas):
+        a, b, c, d, _ = scipy.signal.cont2discrete(scipy.signal.tf2ss(*dryden.filters()[j]), h, method="zoh")
+        P = scipy.linalg.solve_discrete_lyapunov(a, np.pi / h * b @ b.T)
+        assert abs(np.sqrt((c @ P @ c.T)[0, 0] + np.pi / h * d[0, 0] ** 2) / sigma - 1) < 0.01
+    # sample std within sampling error (the slowest, u, has ~2**18 h / (2 L_u / V) ~ 200 independent stretches)
+    np.testing.assert_allclose(gusts[:, :3].std(axis=0), sigmas, rtol=0.15)
+    f, psd = scipy.signal.welch(gusts[:, :3], fs=1 / h, nperseg=2**12, axis=0)
+    band = (f > 0.05) & (f < 2.0)
+    ratio = psd[band] / (2 * np.pi * dryden.psd(2 * np.pi * f[band]))
+    np.testing.assert_allclose(np.median(ratio, axis=0), 1.0, atol=0.1)
+
+
+def test_drag_acts_on_the_velocity_relative_to_the_wind_about_trim():
+    drag = ts.Drag(-2.0, -1.5, (0.5, -0.3))
+    u = np.linspace(-2, 2, 9)
+    fu, fv = drag.force(u, u)
+    np.testing.assert_allclose(fu, -2.0 * np.abs(u) * u)
+    np.testing.assert_allclose(fv, -1.5 * np.abs(u) * u)
+    x = np.zeros(13)
+    x[0], x[1] = 1.2, -0.4
+    accel = drag.accel(x, np.zeros(5))
+    np.testing.assert_allclose(accel[:2], [-2.0 * (0.7 * 0.7 - (-0.5 * 0.5)), -1.5 * (-0.1 * 0.1 - 0.3 * 0.3)])
+    assert not np.any(accel[2:]) and not np.any(drag.accel(np.zeros(13), np.zeros(5)))
+
+
+def test_a_misaligned_gyro_triad_rotates_p_q_and_the_velocity_frame_rotates_u_v():
+    eps, eps_v = np.deg2rad(4.0), np.deg2rad(-6.0)
+    states = np.random.default_rng(0).standard_normal((50, 13))
+    outputs = ("u", "v", "p", "q", "phi", "theta", "w", "r")
+    y = ts.read(states, outputs, ts.Imu(yaw=eps, velocity_yaw=eps_v))
+    p, q, u, v = (states[:, ts.STATES.index(s)] for s in ("p", "q", "u", "v"))
+    np.testing.assert_allclose(y[:, 2], np.cos(eps) * p + np.sin(eps) * q)
+    np.testing.assert_allclose(y[:, 3], -np.sin(eps) * p + np.cos(eps) * q)
+    angle = np.arctan2(y[:, 3], y[:, 2]) - np.arctan2(q, p)
+    np.testing.assert_allclose(np.angle(np.exp(1j * angle)), -eps, atol=1e-12)
+    np.testing.assert_allclose(y[:, 0], np.cos(eps_v) * u + np.sin(eps_v) * v)
+    np.testing.assert_array_equal(y[:, 4:7], states[:, [4, 5, 8]])
+    scaled = ts.read(states, outputs, ts.Imu(scale=(0.05, -0.03, 0.0)))
+    np.testing.assert_allclose(scaled[:, 2:4], np.stack([1.05 * p, 0.97 * q], axis=1))
+    tilted = ts.Imu(tilt=(0.0, 0.02)).gyro_matrix()
+    assert tilted[0, 2] == pytest.approx(-np.sin(0.02))  # a pitched triad reads r on its p axis
+
+
+def test_a_bias_random_walk_grows_its_variance_as_intensity_times_time():
+    walk = ts.BiasWalk("q", start=0.03, intensity=2e-4)
+    time = np.linspace(0.0, 20.0, 201)
+    rng = np.random.default_rng(3)
+    paths = np.array([walk.sample(time, rng) for _ in range(2000)])
+    np.testing.assert_array_equal(paths[:, 0], 0.03)
+    np.testing.assert_allclose(paths[:, 1:].var(axis=0) / (2e-4 * time[1:]), 1.0, atol=0.15)
+
+
+def test_governor_droop_settles_on_its_analytic_gain():
+    governor = ts.Governor(droop=0.06, tau=0.5, yaw=50.0)
+    n, h = 0.0, 0.01
+    history = []
+    for _ in range(3000):
+        n = governor.advance(n, 0.4, h)
+        history.append(n)
+    assert history[-1] == pytest.approx(-0.06 * 0.4, rel=1e-9)
+    assert history[49] == pytest.approx(-0.024 * (1 - np.exp(-1.0)), rel=1e-9)  # one time constant
+    A, B = ts.hover_model(TABLE2)
+    accel = governor.accel(-0.024, np.zeros(4), B)
+    r, w = ts.STATES.index("r"), ts.STATES.index("w")
+    assert accel[r] == pytest.approx(-1.2) and accel[w] == pytest.approx(2 * 9.81 * 0.024)
+    assert np.count_nonzero(accel) == 2
+
+
+def test_quantisation_rounds_to_whole_steps():
+    y = np.random.default_rng(0).normal(0, 0.05, (400, 2))
+    out = ts.Quantiser({"q": 0.01}).apply(y, ("p", "q"))
+    np.testing.assert_array_equal(out[:, 0], y[:, 0])
+    np.testing.assert_allclose(out[:, 1] / 0.01, np.round(out[:, 1] / 0.01), atol=1e-9)
+    assert np.max(np.abs(out[:, 1] - y[:, 1])) <= 0.005 + 1e-12
+    assert len(np.unique(np.round(out[:, 1], 9))) < 40
+
+
+def test_a_vibration_line_sits_at_its_frequency_and_aliases_into_the_logger():
+    line = ts.Vibration(0.02, 24.0, 0.3)
+    for dt, expected in ((0.001, 24.0), (0.05, 4.0)):
+        time = dt * np.arange(4000)
+        spectrum = np.abs(np.fft.rfft(line.sample(time)))
+        peak = np.fft.rfftfreq(len(time), dt)[np.argmax(spectrum)]
+        assert peak == pytest.approx(expected, abs=1 / (len(time) * dt))
+        assert line.alias(dt) == pytest.approx(expected)
+
+
+def test_detectability_is_false_without_an_effect_and_true_for_a_large_one():
+    sigma = np.array([ts.NOISE[c] for c in ts.OUTPUTS])
+    common = dict(style="validate", duration=10.0, dt=0.05, seed=7, noise=sigma)
+    for effects, expected in ((ts.Effects(drag=ts.Drag(0.0, 0.0)), False),
+                              (ts.Effects(servo=ts.Servo(delay=(3, 3, 3, 3))), True)):
+        flight = ts.fly(TABLE2, effects, **common)
+        score = ts.detectability(TABLE2, effects, flight, sigma, seed=7, duration=10.0, dt=0.05)
+        assert (score > 1.0) is expected, score
+    none = ts.truth_trial("none", 3, TABLE2, style="regulation", duration=10.0)
+    assert none.score == 0.0 and not none.detectable
+
+
+def test_the_logger_reads_the_channels_and_noise_of_the_librarys_synthetic_flights():
+    assert ts.OUTPUTS == DEFAULT_OUTPUTS
+    assert ts.NOISE == {c: DEFAULT_NOISE[c] for c in DEFAULT_OUTPUTS}
+
+
+def test_the_table_names_library_candidates_and_their_parameters():
+    assert set(ts.KINDS) == set(ts.KIND_CANDIDATES)
+    outputs = ts.OUTPUTS
+    for kind in ts.KINDS:
+        assert set(ts.KIND_CANDIDATES[kind]) <= set(fx.ALL) | {"none"}
+        injected = ts.draw(kind, ts.Dice(np.random.default_rng(5), 1.0, ts.NOISE, 30.0, 0.05, outputs))
+        assert injected.candidates and set(injected.shared) <= set(injected.candidates)
+        for candidate, values in injected.shared.items():
+            assert set(values) <= {p.name for p in fx.params(candidate, outputs)}
+
+
+def test_the_adapter_gives_library_flights_and_passes_seeds_through():
+    a = independent_trial("servo_dynamics", 1000, R50_SI, style="sweep", duration=8.0)
+    b = independent_trial("servo_dynamics", 0, R50_SI, style="sweep", duration=8.0)
+    assert a.train.output_names == ts.OUTPUTS and a.train.n_samples == 161
+    assert a.oracle == "actuator_lag" and a.primary.startswith("lag_") and a.value > 0
+    assert a.eta[next(p.slot for p in fx.params("actuator_lag", ts.OUTPUTS) if p.name == a.primary)] == a.value
+    assert a.train.metadata["kind"] == "servo_dynamics" and a.validate.metadata["role"] == "validate"
+    assert not np.allclose(a.train.outputs, b.train.outputs)
+
+
+def test_the_blind_check_flies_independent_trials_and_starts_its_oracle_at_the_shared_values():
+    from jaxheli.benchmark.blind import _oracle_row, scenario, trial_flights
+
+    inj, train, validate, right, facts = trial_flights("independent", "drag", 3, scenario(3), duration=8.0, dt=0.05,
+                                                       outputs=DEFAULT_OUTPUTS)
+    assert inj.kind == "quadratic_drag" and right == ("quadratic_drag",) and inj.primary == "Xuu"
+    assert facts["detectable"] == (facts["detectability"] > 1) and train.source != validate.source
+    index, start, lower, upper = _oracle_row(inj.kind, inj, *fx.candidate_arrays(fx.ALL, DEFAULT_OUTPUTS))
+    assert start[0, 0] == pytest.approx(np.clip(inj.value, lower[0, 0], upper[0, 0]))
+    with pytest.raises(ValueError, match="unknown truth simulator"):
+        trial_flights("other", "drag", 3, scenario(3), duration=8.0, dt=0.05, outputs=DEFAULT_OUTPUTS)
