@@ -1,0 +1,75 @@
+"""The diagnosis's thresholds and the blind check's seed protocol, read from one file (``thresholds.json``
+beside this module, or ``$JAXHELI_THRESHOLDS``), the only place the diagnosis and the benchmark take them from.
+
+Each value records the commit that set it and the seeds it was set on. The protocol: design seeds (anything
+goes), calibration seeds (they set every value here), test seeds (run once per release, reported, never used to
+change a value). A value changed after a test run voids that run's numbers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from pathlib import Path
+
+FILE = Path(__file__).with_name("thresholds.json")
+"""The thresholds file shipped with the package."""
+
+ENV = "JAXHELI_THRESHOLDS"
+"""Environment variable naming another thresholds file (same layout)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Protocol:
+    """Seed ranges of the blind check: ``design`` and ``calibration`` as inclusive ``(first, last)``, test seeds
+    from ``test_from`` on."""
+
+    design: tuple[int, int]
+    calibration: tuple[int, int]
+    test_from: int
+
+    def seeds(self, split: str, count: int) -> list[int]:
+        """The first ``count`` seeds of ``split`` (``"design"``, ``"calibration"`` or ``"test"``)."""
+        first, last = {"design": self.design, "calibration": self.calibration,
+                       "test": (self.test_from, None)}[split]
+        if last is not None and first + count - 1 > last:
+            raise ValueError(f"{split} seeds are {first}-{last}: {count} do not fit")
+        return list(range(first, first + count))
+
+
+@dataclasses.dataclass(frozen=True)
+class Thresholds:
+    """The diagnosis's significance rules (see :mod:`jaxheli.gap.significance` and :mod:`jaxheli.gap.reference`
+    for what each does) and the blind check's :class:`Protocol`; ``source`` is the file they came from."""
+
+    min_shrink: float
+    min_z: float
+    sig_sigma: float
+    large_shrink: float
+    tie_sigma: float
+    settled_pct: float
+    start_tie_pct: float
+    protocol: Protocol
+    source: str
+
+
+def load(path: str | Path | None = None) -> Thresholds:
+    """The thresholds of ``path`` (default ``$JAXHELI_THRESHOLDS``, else :data:`FILE`); a missing or unknown value
+    is an error naming the file and the field."""
+    path = Path(path or os.environ.get(ENV) or FILE)
+    try:
+        data = json.loads(path.read_text())
+        values = {f.name: float(data["thresholds"][f.name]["value"]) for f in dataclasses.fields(Thresholds)
+                  if f.name not in ("protocol", "source")}
+        p = data["protocol"]
+        protocol = Protocol(tuple(p["design_seeds"]), tuple(p["calibration_seeds"]), int(p["test_seeds_from"]))
+    except (OSError, ValueError) as err:
+        raise ValueError(f"{path}: cannot read the thresholds ({err})") from err
+    except (KeyError, TypeError) as err:
+        raise ValueError(f"{path}: thresholds file lacks or mistypes the field {err}") from err
+    return Thresholds(**values, protocol=protocol, source=str(path))
+
+
+THRESHOLDS = load()
+"""The thresholds in force (read once, at import)."""
