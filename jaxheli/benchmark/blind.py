@@ -47,9 +47,10 @@ from ..synth.excitation import Excitation
 from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
 from ..gap.final_fit import final_fit
 from ..gap.fit_effect import with_reference
-from ..gap.ranking import (
-    MIN_SHRINK, MIN_Z, base_refit, fit_and_score, predictor_pair, shrink_entries, theta_box, withhold, yardstick,
-)
+from ..gap.records import Entry, Final, Refit
+from ..gap.ranking import fit_and_score, predictor_pair
+from ..gap.reference import base_refit, theta_box, withhold
+from ..gap.significance import MIN_SHRINK, MIN_Z, shrink_entries, yardstick
 
 KINDS: tuple[str, ...] = fx.ALL + ("none",)
 """Effect kinds of the blind check: every candidate plus the effect-free control."""
@@ -207,39 +208,42 @@ def run_trial(
     arrays = [np.vstack([a, o]) for a, o in zip(arrays, oracle)]
     cand = with_reference(*arrays, pad=len(no_effect(outputs)), shared=fx.nuisance_arrays(outputs))
     box = theta_box(theta, Bounds(*BOX))
-    fit, gaps, segs, rss_start = fit_and_score(train_pred, validate_pred, theta, cand, max_steps, box,
-                                               np.r_[owner, len(fx.ALL)], challenge=len(fx.ALL))
-    n = len(fx.ALL) + 1
-    credit_gaps, credit_segs = yardstick(gaps, segs)
-    ranking = shrink_entries(list(fx.ALL), outputs, jax.tree.map(lambda a: a[:n], fit), credit_gaps[1:n + 1],
-                             credit_segs[1:n + 1], min_shrink, shared=True)
-    refit = base_refit(fit, gaps, segs, outputs, rss_start, min_shrink)
+    scored = fit_and_score(train_pred, validate_pred, theta, cand, max_steps, box, np.r_[owner, len(fx.ALL)],
+                           challenge=len(fx.ALL))
+    rows = len(fx.ALL) + 1
+    credited = yardstick(scored.given, scored.rows)
+    ranking = shrink_entries(list(fx.ALL), outputs, jax.tree.map(lambda a: a[:rows], scored.fit),
+                             credited.take(slice(None, rows)), min_shrink, shared=True)
+    refit = base_refit(scored, outputs, min_shrink)
     ranking = withhold(ranking, refit)
-    best = next((e for e in ranking if e["significant"]), None)
+    best = next((e for e in ranking if e.significant), None)
     final = final_fit(train_pred, validate_pred, best, box) if best is not None else None
-    ranking = [{k: v for k, v in e.items() if k != "theta"} for e in ranking]
-    top = best["effect"] if best else "none"
+    top = best.effect if best else "none"
+    oracle_z, oracle_stderr = np.asarray(scored.fit.z[-1]), np.asarray(scored.fit.stderr[-1])
     record = {"kind": kind, "seed": int(seed), "truth": where.truth, "style": where.style, "noise": where.noise,
               "strength": where.strength, "top": top, "correct": top == kind,
-              "in_tie": top == kind or (best is not None and kind in best["tied_with"]),
+              "in_tie": top == kind or (best is not None and kind in best.tied_with),
               "true_value": inj.value, "primary": inj.primary,
-              "oracle_shrink_pct": 100.0 * (1.0 - float(np.mean(gaps[-1]) / np.mean(credit_gaps[1]))),
-              "oracle_evidence_z": (fx.evidence(kind, outputs, np.asarray(fit.z[-1]), np.asarray(fit.stderr[-1]))
-                                    if kind != "none" else None),
-              "base": ident,
-              "base_refit": {k: v for k, v in refit.items() if k != "theta"}, "track": float(train_pred.track),
-              "ranking": ranking, "final": None if final is None else {k: v for k, v in final.items() if k != "theta"}}
+              "oracle_shrink_pct": 100.0 * (1.0 - float(np.mean(scored.rows.gap[-1]) / np.mean(credited.gap[0]))),
+              "oracle_evidence_z": fx.evidence(kind, outputs, oracle_z, oracle_stderr) if kind != "none" else None,
+              "base": ident, "base_refit": _untheta(refit), "track": float(train_pred.track),
+              "ranking": [_untheta(e) for e in ranking], "final": None if final is None else _untheta(final)}
     if inj.primary is not None:
-        entry = next(e for e in ranking if e["effect"] == kind)
-        trained = entry["params"][inj.primary]
-        reported = final["params"][inj.primary] if top == kind else trained
-        oracle = fx.describe(kind, outputs, np.asarray(fit.z[-1]), np.asarray(fit.stderr[-1]))[0][inj.primary]["value"]
-        record.update(estimate=reported["value"], stderr=reported["stderr"],
-                      magnitude_error=_relative_error(reported["value"], inj.value), estimate_train=trained["value"],
-                      magnitude_error_train=_relative_error(trained["value"], inj.value),
-                      shrink_pct=entry["shrink_pct"],
+        entry = next(e for e in ranking if e.effect == kind)
+        trained = entry.fitted.params[inj.primary]
+        reported = final.fitted.params[inj.primary] if top == kind else trained
+        oracle = fx.describe(kind, outputs, oracle_z, oracle_stderr)[0][inj.primary].value
+        record.update(estimate=reported.value, stderr=reported.stderr,
+                      magnitude_error=_relative_error(reported.value, inj.value), estimate_train=trained.value,
+                      magnitude_error_train=_relative_error(trained.value, inj.value),
+                      shrink_pct=entry.shrink_pct,
                       oracle_estimate=oracle, oracle_magnitude_error=_relative_error(oracle, inj.value))
     return record
+
+
+def _untheta(result: Entry | Refit | Final) -> dict[str, Any]:
+    """``result``'s JSON without its base parameters (a trial's record keeps the sizes, not 40 numbers each)."""
+    return {k: v for k, v in result.to_json().items() if k != "theta"}
 
 
 def _relative_error(value: float, true: float) -> float:
