@@ -8,7 +8,7 @@ identified on the contaminated training flight (never the truth), in one box tha
 classes (:data:`BOX`): by PEM, or by IWO and its gradient polish (:data:`BASES`, :func:`base_model`). The
 diagnosis is the library's default: every candidate fitted jointly with the base parameters, credited beyond
 the base re-fitted alone (:func:`~jaxheli.gap.ranking.fit_and_score`) or the given base, whichever predicts the
-validation flight better (:func:`~jaxheli.gap.ranking.yardstick`).
+validation flight better (:func:`~jaxheli.gap.significance.yardstick`).
 The oracle is the identified base with the *true* effect, started at its true values and fitted jointly the
 same way; its own magnitude error shows how much of the diagnosis's is the identified base's. The named
 effect's size is then re-identified on both flights (:func:`~jaxheli.gap.final_fit.final_fit`). All trials of
@@ -346,15 +346,15 @@ def _exit_with(parent: int, poll: float = 2.0) -> None:
 DETECTABLE_PCT = 10.0
 """Oracle shrink (%) from which an injected effect counts as detectable: the identified base model with the true
 effect, fitted jointly, shrinks the held-out gap of the better model without an effect
-(:func:`~jaxheli.gap.ranking.yardstick`) by at least this much (the default
-significance floor, :data:`~jaxheli.gap.ranking.MIN_SHRINK`). Below it the draw left the effect at the noise level
+(:func:`~jaxheli.gap.significance.yardstick`) by at least this much (the default
+significance floor, :data:`~jaxheli.gap.significance.MIN_SHRINK`). Below it the draw left the effect at the noise level
 of that flight (a bias the restarts absorb, a rotor coupling the collective hardly excites), and no diagnosis can
 attribute what the data do not show."""
 
 
 def identifiable(record: dict[str, Any]) -> bool:
     """A detectable trial (:data:`DETECTABLE_PCT`) whose *training* flight resolves the effect: the oracle's fitted
-    size stands :data:`~jaxheli.gap.ranking.MIN_Z` standard errors or more from no effect
+    size stands :data:`~jaxheli.gap.significance.MIN_Z` standard errors or more from no effect
     (:func:`~jaxheli.effects.registry.evidence`), the test every significant candidate must pass. The validation
     flight's 3-2-1-1 sticks (0.25) are larger than a regulating pilot's (about 0.08 at most): a saturation at 0.15-0.3
     stick then shrinks the held-out gap by 40-90 % once its true size is handed in, yet the training flight cannot

@@ -21,16 +21,53 @@ from ..effects.registry import Fitted, json_number
 from ..model import PARAM_NAMES
 
 
-def _named(theta: Float[np.ndarray, "40"]) -> dict[str, float]:
+Theta = Float[np.ndarray, "40"]
+"""Base parameters in the order of :data:`~jaxheli.model.PARAM_NAMES` (JSON: an object by name)."""
+
+
+def _named(theta: Theta) -> dict[str, float]:
     return dict(zip(PARAM_NAMES, map(float, np.asarray(theta))))
 
 
-def _theta(named: Mapping[str, float | None]) -> Float[np.ndarray, "40"]:
+def _theta(named: Mapping[str, float | None]) -> Theta:
     return np.array([json_number(named[n]) for n in PARAM_NAMES])
 
 
 def _floats(named: Mapping[str, float | None]) -> dict[str, float]:
     return {k: json_number(v) for k, v in named.items()}
+
+
+_WRITE = {"Mapping[str, float]": dict, "Theta": _named, "tuple[str, ...]": list,
+          "tuple[Mapping[str, Any], ...]": list}
+"""How a record field of each annotated type is written to JSON (as it is where not named here)."""
+
+_READ = {"float": json_number, "int": int, "bool": bool, "str": str, "Mapping[str, float]": _floats,
+         "Theta": _theta, "tuple[str, ...]": tuple, "tuple[Mapping[str, Any], ...]": tuple}
+"""How a record field of each annotated type is read back from JSON."""
+
+
+def _write(record: Any, *omit: str) -> dict[str, Any]:
+    """The fields of a frozen record but ``omit``, by name, as JSON values (:data:`_WRITE`), in field order."""
+    return {f.name: _WRITE.get(f.type, _same)(getattr(record, f.name)) for f in dataclasses.fields(record)
+            if f.name not in omit}
+
+
+def _same(value: Any) -> Any:
+    return value
+
+
+def _json(record: Any) -> dict[str, Any] | None:
+    return None if record is None else record.to_json()
+
+
+def _maybe(read: Any, data: Mapping[str, Any] | None) -> Any:
+    return None if data is None else read(data)
+
+
+def _read(cls: type, data: Mapping[str, Any], **given: Any) -> Any:
+    """The record ``cls`` of JSON ``data``: the fields ``given``, the others read by their type (:data:`_READ`)."""
+    return cls(**{f.name: given[f.name] if f.name in given else _READ[f.type](data[f.name])
+                  for f in dataclasses.fields(cls)})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,12 +82,12 @@ class LRTest:
 
     def to_json(self) -> dict[str, Any]:
         """``{statistic, dof, p_value, delta_aic}``."""
-        return dataclasses.asdict(self)
+        return _write(self)
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> LRTest:
         """The inverse of :meth:`to_json`."""
-        return cls(json_number(data["statistic"]), int(data["dof"]), json_number(data["p_value"]), json_number(data["delta_aic"]))
+        return _read(cls, data)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -84,7 +121,7 @@ class Entry:
     gap_base: float
     gap: float
     converged: bool
-    theta: Float[np.ndarray, "40"]
+    theta: Theta
     nuisance: Mapping[str, float]
     tied_with: tuple[str, ...] = ()
 
@@ -101,10 +138,7 @@ class Entry:
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Entry:
         """The inverse of :meth:`to_json`."""
-        return cls(data["effect"], Fitted.from_json(data), json_number(data["shrink_pct"]), json_number(data["shrink_se_pct"]),
-                   _floats(data["shrink_by_channel"]), bool(data["significant"]), LRTest.from_json(data["lr"]),
-                   json_number(data["p_value"]), json_number(data["gap_base"]), json_number(data["gap"]), bool(data["converged"]),
-                   _theta(data["theta"]), _floats(data["nuisance"]), tuple(data["tied_with"]))
+        return _read(cls, data, fitted=Fitted.from_json(data), lr=LRTest.from_json(data["lr"]))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,25 +159,18 @@ class Refit:
     progress_pct: float
     settled: bool
     steps: int
-    theta: Float[np.ndarray, "40"]
+    theta: Theta
     nuisance: Mapping[str, float]
 
     def to_json(self) -> dict[str, Any]:
         """``{"joint": True, ...}`` as ``jaxheli diagnose`` writes it (a frozen base, no re-fit, writes
         ``{"joint": False}``)."""
-        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
-        return {"joint": True, **fields, "gap_by_channel": dict(self.gap_by_channel), "theta": _named(self.theta),
-                "nuisance": dict(self.nuisance)}
+        return {"joint": True, **_write(self)}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Refit | None:
         """The inverse of :meth:`to_json` (``None`` for a frozen base)."""
-        if not data["joint"]:
-            return None
-        return cls(json_number(data["shrink_pct"]), json_number(data["shrink_se_pct"]), json_number(data["gap_base"]), json_number(data["gap"]),
-                   _floats(data["gap_by_channel"]), bool(data["under_fitted"]), bool(data["converged"]),
-                   json_number(data["progress_pct"]), bool(data["settled"]), int(data["steps"]), _theta(data["theta"]),
-                   _floats(data["nuisance"]))
+        return _read(cls, data) if data["joint"] else None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -156,19 +183,17 @@ class Final:
     fitted: Fitted
     rss: float
     steps: int
-    theta: Float[np.ndarray, "40"]
+    theta: Theta
     nuisance: Mapping[str, float]
 
     def to_json(self) -> dict[str, Any]:
         """``{effect, params, where, summary, at_bound, evidence_z, rss, steps, theta, nuisance}``."""
-        return {"effect": self.effect, **self.fitted.to_json(), "rss": self.rss, "steps": self.steps,
-                "theta": _named(self.theta), "nuisance": dict(self.nuisance)}
+        return {"effect": self.effect, **self.fitted.to_json(), **_write(self, "effect", "fitted")}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Final:
         """The inverse of :meth:`to_json`."""
-        return cls(data["effect"], Fitted.from_json(data), json_number(data["rss"]), int(data["steps"]),
-                   _theta(data["theta"]), _floats(data["nuisance"]))
+        return _read(cls, data, fitted=Fitted.from_json(data))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -192,18 +217,16 @@ class Attribution:
 
     def to_json(self) -> dict[str, Any]:
         """``{ranking, combination, base_refit, verdict, final, track}``."""
-        return {"ranking": [e.to_json() for e in self.ranking],
-                "combination": None if self.combination is None else self.combination.to_json(),
-                "base_refit": {"joint": False} if self.base_refit is None else self.base_refit.to_json(), "verdict": self.verdict,
-                "final": None if self.final is None else self.final.to_json(), "track": self.track}
+        return {"ranking": [e.to_json() for e in self.ranking], "combination": _json(self.combination),
+                "base_refit": _json(self.base_refit) or {"joint": False}, "verdict": self.verdict,
+                "final": _json(self.final), "track": self.track}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Attribution:
         """The inverse of :meth:`to_json`."""
-        return cls(tuple(Entry.from_json(e) for e in data["ranking"]),
-                   None if data["combination"] is None else Entry.from_json(data["combination"]),
-                   Refit.from_json(data["base_refit"]), data["verdict"],
-                   None if data["final"] is None else Final.from_json(data["final"]), json_number(data["track"]))
+        return _read(cls, data, ranking=tuple(map(Entry.from_json, data["ranking"])),
+                     combination=_maybe(Entry.from_json, data["combination"]),
+                     base_refit=Refit.from_json(data["base_refit"]), final=_maybe(Final.from_json, data["final"]))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -215,12 +238,12 @@ class Gap:
 
     def to_json(self) -> dict[str, Any]:
         """``{channel, total}``."""
-        return {"channel": dict(self.channel), "total": self.total}
+        return _write(self)
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Gap:
         """The inverse of :meth:`to_json` (other keys ignored)."""
-        return cls(_floats(data["channel"]), json_number(data["total"]))
+        return _read(cls, data)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -234,13 +257,12 @@ class FlightSummary:
 
     def to_json(self) -> dict[str, Any]:
         """``{source, samples, dt, preprocessing}``."""
-        return {"source": self.source, "samples": self.samples, "dt": self.dt,
-                "preprocessing": list(self.preprocessing)}
+        return _write(self)
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> FlightSummary:
         """The inverse of :meth:`to_json`."""
-        return cls(data["source"], int(data["samples"]), json_number(data["dt"]), tuple(data["preprocessing"]))
+        return _read(cls, data)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -292,7 +314,7 @@ class Diagnosis:
     def from_json(cls, data: Mapping[str, Any]) -> Diagnosis:
         """The inverse of :meth:`to_json` (arrays of the localisation come back as lists)."""
         after = data["gap_after"]
-        return cls(data["model"], {role: FlightSummary.from_json(f) for role, f in data["flights"].items()},
-                   tuple(data["outputs"]), json_number(data["segment_s"]), tuple(data["consistency"]), data["localisation"],
-                   Attribution.from_json(data), Gap.from_json(data["gap_before"]), Gap.from_json(after["best"]),
-                   None if after["combination"] is None else Gap.from_json(after["combination"]))
+        return _read(cls, data, flights={role: FlightSummary.from_json(f) for role, f in data["flights"].items()},
+                     localisation=data["localisation"], attribution=Attribution.from_json(data),
+                     gap_before=Gap.from_json(data["gap_before"]), gap_best=Gap.from_json(after["best"]),
+                     gap_combination=_maybe(Gap.from_json, after["combination"]))
