@@ -27,6 +27,7 @@ from .io import DEFAULT_PX4 as DEFAULT_PX4, DEFAULT_ULOG as DEFAULT_ULOG, load a
 from .io import save_csv as save_csv, save_npz as save_npz
 from .data.plausible import check_plausible as check_plausible
 from .gap.prepare import prepare as prepare
+from .gap.records import Diagnosis as Diagnosis, Entry as Entry
 from .model import (
     G_SI as G_SI,
     INPUT_NAMES as INPUT_NAMES,

@@ -13,6 +13,7 @@ from jaxheli.synth.excitation import Excitation
 from jaxheli.cli.gap import add_diagnose_parser as add_parser
 from jaxheli.effects import plant as augmented, registry as effects
 from jaxheli.gap.diagnose import diagnose, effect_eta, predictions, shared_outputs
+from jaxheli.gap.records import Diagnosis
 from jaxheli.gap.predictor import make_predictor
 from jaxheli.io import save_npz
 from jaxheli.model import PARAM_NAMES, TABLE2
@@ -99,7 +100,8 @@ def test_gaps_recomputed_independently(delayed):
     for c in OUT:
         before, after = d["gap_before"]["channel"][c], d["gap_after"]["best"]["channel"][c]
         np.testing.assert_allclose(100 * (before - after) / before, top["shrink_by_channel"][c], rtol=1e-6, atol=1e-6)
-    y = predictions(TABLE2, validate, [top], segment=2.0, track=d["track"])
+    entry = Diagnosis.from_json(d).attribution.ranking[0]
+    y = predictions(TABLE2, make_predictor(validate, segment=2.0, track=d["track"]), [entry])
     np.testing.assert_allclose(y[0], reference, atol=1e-7 * np.abs(reference).max())
     truth = augmented.no_effect(OUT)
     truth[augmented.layout(OUT)["delay"].start + 1] = DELAY
@@ -107,14 +109,14 @@ def test_gaps_recomputed_independently(delayed):
     worst = np.max(np.abs(y[1] - np.asarray(oracle)), axis=0) / np.abs(validate.outputs).max(axis=0)
     assert np.all(worst < 0.05), dict(zip(OUT, worst))
     assert d["gap_after"]["best"]["total"] < 1.1 * float(np.mean(nmse(oracle, validate.outputs)))
-    eta = effect_eta(top["effect"], top["params"], OUT)
+    eta = effect_eta(entry.effect, entry.fitted.params, OUT)
     delays = augmented.layout(OUT)["delay"]
     changed = set(np.flatnonzero(eta != augmented.no_effect(OUT)))
     assert delays.start + 1 in changed and changed <= set(range(delays.start, delays.stop))  # delays, nothing else
 
 
 def test_clean_flight_gives_no_significant_effect():
-    d = diagnose(TABLE2, _flight(0.0, 3, 0.2), _flight(0.0, 4, 0.25), **OPTIONS)
+    d = diagnose(TABLE2, _flight(0.0, 3, 0.2), _flight(0.0, 4, 0.25), **OPTIONS).to_json()
     assert json.loads(json.dumps(d, allow_nan=False)) == d  # plain, strict JSON
     assert d["verdict"] == "no significant effect"
     assert not any(e["significant"] for e in d["ranking"])
@@ -128,7 +130,7 @@ def test_joint_reidentification_finds_the_delay_and_credits_it_beyond_the_refitt
     shrinks when re-fitted alone), and the delay is credited only beyond that; its fit stays in its box, and
     the reference's gap matches the numpy predictor run on its re-fitted parameters."""
     train, validate, frozen, _ = delayed
-    d = diagnose(TABLE2, train, validate, **OPTIONS)
+    d = diagnose(TABLE2, train, validate, **OPTIONS).to_json()
     refit = d["base_refit"]
     assert refit["joint"] and refit["settled"]
     top = d["ranking"][0]
@@ -164,14 +166,13 @@ def test_an_under_fitted_base_model_is_named_not_an_effect():
     jointly (the default), the diagnosis says the base is under-fitted and credits no effect."""
     train, validate = _flight(0.0, 3, 0.2), _flight(0.0, 4, 0.25)
     base = pem(train, max_steps=3, outputs=OUT).theta
-    d = diagnose(base, train, validate, **OPTIONS)
-    refit = d["base_refit"]
-    assert refit["under_fitted"] and refit["shrink_pct"] > 50
-    assert d["verdict"].startswith("base model under-fitted")
-    assert d["verdict"].endswith(("no significant effect", "before attributing effects"))
-    assert not any(e["significant"] for e in d["ranking"])
-    frozen = diagnose(base, train, validate, joint=False, **OPTIONS)
-    assert min(e["lr"]["p_value"] for e in frozen["ranking"]) < 1e-3  # the training likelihood alone claims one
+    d = diagnose(base, train, validate, **OPTIONS).attribution
+    assert d.base_refit.under_fitted and d.base_refit.shrink_pct > 50
+    assert d.verdict.startswith("base model under-fitted")
+    assert d.verdict.endswith(("no significant effect", "before attributing effects"))
+    assert not any(e.significant for e in d.ranking)
+    frozen = diagnose(base, train, validate, joint=False, **OPTIONS).attribution
+    assert min(e.lr.p_value for e in frozen.ranking) < 1e-3  # the training likelihood alone claims one
 
 
 def test_shared_outputs_and_bad_channels():
@@ -194,5 +195,6 @@ def test_cli_writes_every_file(delayed, tmp_path):
         assert (out / name).stat().st_size > 0
     assert json.loads((out / "consistency.json").read_text()) == d["consistency"]
     assert "train" in d["localisation"]
+    assert Diagnosis.from_json(d).to_json() == d  # the file reads back as the record it was written from
     with pytest.raises(SystemExit, match="unknown effect"):
         _cli(["--model", "table2", "--train", "x.npz", "--validate", "y.npz", "--effects", "input_delay,gremlins"])

@@ -14,7 +14,8 @@ from jaxheli.gap.kalman import gust_filter, riccati
 from jaxheli.cost import nmse
 from jaxheli.gap.predictor import TRACKS, make_predictor, noise_variance, tune_track
 from jaxheli.gap.fit_effect import Fit
-from jaxheli.gap.ranking import SIG_SIGMA, TIE_SIGMA, lr_test, rank_effects, shrink_entries, verdict, yardstick
+from jaxheli.gap.ranking import predictor_pair, rank_effects, verdict
+from jaxheli.gap.significance import SIG_SIGMA, TIE_SIGMA, HeldOut, lr_test, shrink_entries, yardstick
 from jaxheli.model import TABLE2
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS, piloted_flight
 from filtered_restart import reference_prediction
@@ -183,14 +184,14 @@ def test_rank_effects_finds_an_injected_lon_delay():
     short = Excitation("3211", amplitude=(0.2,) * 4, unit=0.3)
     train = _flight(eta, seed=3, noise=1.0, duration=12.0, excitation=short)
     validate = _flight(eta, seed=4, noise=1.0, duration=12.0, excitation=Excitation("3211", amplitude=(0.25,) * 4, unit=0.35))
-    ranking = rank_effects(TABLE2, train, validate, max_steps=15, joint=False)  # tests/test_blind.py's compile
-    top = ranking[0]
-    assert top["effect"] == "input_delay" and top["significant"]
-    assert top["where"] == ["lon"]
-    est = top["params"]["delay_lon"]
-    assert abs(est["value"] - delay) < max(4 * est["stderr"], 0.005)
-    assert top["shrink_pct"] > 50 and set(top["shrink_by_channel"]) == set(OUT)
-    assert not ranking[-1]["significant"]
+    ranking = rank_effects(TABLE2, *predictor_pair(TABLE2, train, validate), max_steps=15, joint=False)
+    top = ranking[0]  # tests/test_blind.py's compile
+    assert top.effect == "input_delay" and top.significant
+    assert top.fitted.where == ("lon",)
+    est = top.fitted.params["delay_lon"]
+    assert abs(est.value - delay) < max(4 * est.stderr, 0.005)
+    assert top.shrink_pct > 50 and set(top.shrink_by_channel) == set(OUT)
+    assert not ranking[-1].significant
     assert verdict(ranking).startswith("input_delay")
 
 
@@ -228,13 +229,13 @@ def test_fits_on_the_physical_bound_are_never_significant():
     z[0, :4], z[1, :4] = [0.5, 0.01, 0.01, 0.01], [0.08, 0.01, 0.01, 0.01]
     gap_base, segs = np.full(len(OUT), 0.2), np.ones((3, 4))
     ranking = shrink_entries(["input_delay", "input_delay"], OUT, _fit(z, np.full((2, k), 0.005)),
-                             np.stack([gap_base, 0.5 * gap_base, 0.5 * gap_base]), segs, min_shrink=3.0)
-    bound, plausible = sorted(ranking, key=lambda e: e["params"]["delay_lat"]["value"], reverse=True)
-    assert bound["shrink_pct"] == plausible["shrink_pct"] == pytest.approx(50.0)
-    assert not bound["significant"] and bound["at_bound"] == ["delay_lat 0.5 s at its bound 0.5 s"]
-    assert "on the physical bound: delay_lat 0.5 s at its bound 0.5 s" in bound["summary"]
-    assert plausible["significant"] and plausible["at_bound"] == []
-    lo, hi = plausible["params"]["delay_lat"]["interval"]
+                             HeldOut(np.stack([gap_base, 0.5 * gap_base, 0.5 * gap_base]), segs), min_shrink=3.0)
+    bound, plausible = sorted(ranking, key=lambda e: e.fitted.params["delay_lat"].value, reverse=True)
+    assert bound.shrink_pct == plausible.shrink_pct == pytest.approx(50.0)
+    assert not bound.significant and bound.fitted.at_bound == ("delay_lat 0.5 s at its bound 0.5 s",)
+    assert "on the physical bound: delay_lat 0.5 s at its bound 0.5 s" in bound.fitted.summary
+    assert plausible.significant and plausible.fitted.at_bound == ()
+    lo, hi = plausible.fitted.params["delay_lat"].interval
     assert (lo, hi) == pytest.approx((0.08 - 1.959964 * 0.005, 0.08 + 1.959964 * 0.005))
 
 
@@ -250,10 +251,10 @@ def test_a_shrink_from_parameters_within_noise_of_no_effect_is_not_significant()
     z[0, :4], z[1, :4] = [0.002, 0.0, 0.0, 0.0], [0.08, 0.0, 0.0, 0.0]
     gap_base = np.full(len(OUT), 0.2)
     weak, strong = shrink_entries(["input_delay", "input_delay"], OUT, _fit(z, np.full((2, k), 0.005)),
-                                  np.stack([gap_base, 0.9 * gap_base, 0.91 * gap_base]), np.ones((3, 4)), 3.0)
-    assert weak["params"]["delay_lat"]["value"] == 0.002 and weak["evidence_z"] == pytest.approx(0.4)
-    assert weak["shrink_pct"] > strong["shrink_pct"] > 3.0
-    assert strong["significant"] and not weak["significant"] and strong["evidence_z"] == pytest.approx(16.0)
+                                  HeldOut(np.stack([gap_base, 0.9 * gap_base, 0.91 * gap_base]), np.ones((3, 4))), 3.0)
+    assert weak.fitted.params["delay_lat"].value == 0.002 and weak.fitted.evidence_z == pytest.approx(0.4)
+    assert weak.shrink_pct > strong.shrink_pct > 3.0
+    assert strong.significant and not weak.significant and strong.fitted.evidence_z == pytest.approx(16.0)
     assert verdict([weak, strong]).startswith("input_delay (lat input delay delay 80 +- 5 ms)")
 
 
@@ -267,19 +268,20 @@ def test_candidates_are_credited_beyond_the_better_model_without_an_effect():
     z = np.zeros((1, 2 * len(OUT)))
     z[0, 0] = 0.08
     fit = _fit(z, np.full_like(z, 0.005))
-    credit_gaps, credit_segs = yardstick(gaps, segs)
-    np.testing.assert_array_equal(credit_gaps[[0, 1, 2]], gaps[[0, 0, 2]])
-    np.testing.assert_array_equal(credit_segs[[0, 1, 2]], segs[[0, 0, 2]])
+    held = HeldOut(gaps, segs)
+    given, rows = held.take(0), held.take(slice(1, None))
+    credited = yardstick(given, rows)
+    np.testing.assert_array_equal(credited.gap, gaps[[0, 2]])
+    np.testing.assert_array_equal(credited.energy, segs[[0, 2]])
     assert gaps[1, 0] == 0.5  # the arrays given are left as they were
-    (credited,) = shrink_entries(["input_delay"], OUT, fit, credit_gaps[1:], credit_segs[1:], 10.0)
-    (against_refit,) = shrink_entries(["input_delay"], OUT, fit, gaps[1:], segs[1:], 10.0)
-    assert credited["shrink_pct"] == pytest.approx(5.0) and not credited["significant"]
-    assert credited["gap_base"] == pytest.approx(0.2)
-    assert against_refit["shrink_pct"] == pytest.approx(62.0) and against_refit["significant"]
-    better = gaps.copy()
-    better[1] = 0.1
-    for kept, given in zip(yardstick(better, segs), (better, segs)):
-        np.testing.assert_array_equal(kept, given)
+    (entry,) = shrink_entries(["input_delay"], OUT, fit, credited, 10.0)
+    (against_refit,) = shrink_entries(["input_delay"], OUT, fit, rows, 10.0)
+    assert entry.shrink_pct == pytest.approx(5.0) and not entry.significant
+    assert entry.gap_base == pytest.approx(0.2)
+    assert against_refit.shrink_pct == pytest.approx(62.0) and against_refit.significant
+    better = HeldOut(np.vstack([np.full(len(OUT), 0.1), gaps[2]]), rows.energy)
+    for kept, kept_given in zip(yardstick(given, better), better):
+        np.testing.assert_array_equal(kept, kept_given)
 
 
 def _windows(rng, base, shrinks, noise):
@@ -303,28 +305,28 @@ def test_shrinks_within_their_paired_noise_are_a_tie_and_noise_alone_is_not_sign
     z = np.zeros((3, k))
     z[:, 0] = 0.08
     ranking = shrink_entries(["input_delay", "actuator_lag", "control_saturation"], OUT,
-                             _fit(z, np.full((3, k), 0.005)), gaps, segs, 3.0)
-    by = {e["effect"]: e for e in ranking}
+                             _fit(z, np.full((3, k), 0.005)), HeldOut(gaps, segs), 3.0)
+    by = {e.effect: e for e in ranking}
     d = segs[0] - segs[1]
-    assert by["input_delay"]["shrink_se_pct"] == pytest.approx(100 * np.sqrt(40) * np.std(d, ddof=1) / segs[0].sum())
-    assert abs(by["input_delay"]["shrink_pct"] - by["actuator_lag"]["shrink_pct"]) < TIE_SIGMA * np.sqrt(40) * 100 * \
+    assert by["input_delay"].shrink_se_pct == pytest.approx(100 * np.sqrt(40) * np.std(d, ddof=1) / segs[0].sum())
+    assert abs(by["input_delay"].shrink_pct - by["actuator_lag"].shrink_pct) < TIE_SIGMA * np.sqrt(40) * 100 * \
         np.std(segs[1] - segs[2], ddof=1) / segs[0].sum()
-    assert by["input_delay"]["significant"] and by["actuator_lag"]["significant"]
-    assert by["input_delay"]["tied_with"] == ["actuator_lag"] and by["actuator_lag"]["tied_with"] == ["input_delay"]
+    assert by["input_delay"].significant and by["actuator_lag"].significant
+    assert by["input_delay"].tied_with == ("actuator_lag",) and by["actuator_lag"].tied_with == ("input_delay",)
     small = by["control_saturation"]
-    assert small["shrink_pct"] == pytest.approx(4.0) and small["shrink_pct"] < SIG_SIGMA * small["shrink_se_pct"]
-    assert not small["significant"] and small["tied_with"] == []
+    assert small.shrink_pct == pytest.approx(4.0) and small.shrink_pct < SIG_SIGMA * small.shrink_se_pct
+    assert not small.significant and small.tied_with == ()
     assert " tied with " in verdict(ranking)
     clean = _windows(np.random.default_rng(1), base, [0.30, 0.22], 0.01)
     apart = shrink_entries(["input_delay", "actuator_lag"], OUT, _fit(z[:2], np.full((2, k), 0.005)),
-                           np.sum(clean, axis=1, keepdims=True) * np.ones((1, len(OUT))) / 40, clean, 3.0)
-    assert all(e["significant"] and e["tied_with"] == [] for e in apart)
+                           HeldOut(np.sum(clean, axis=1, keepdims=True) * np.ones((1, len(OUT))) / 40, clean), 3.0)
+    assert all(e.significant and e.tied_with == () for e in apart)
 
 
 def test_likelihood_ratio_test_matches_the_chi2_closed_form():
     """Two degrees of freedom: ``P(chi2_2 > x) = exp(-x / 2)``; AIC difference ``2 dof - statistic``."""
     out = lr_test(rss_ref=2.0, rss=1.5, n_eff=40.0, dof=2)
     stat = 40.0 * np.log(2.0 / 1.5)
-    assert out["statistic"] == pytest.approx(stat) and out["p_value"] == pytest.approx(np.exp(-stat / 2))
-    assert out["delta_aic"] == pytest.approx(4.0 - stat) and out["dof"] == 2
-    assert lr_test(1.0, 1.0, 40.0, 0)["p_value"] == 1.0
+    assert out.statistic == pytest.approx(stat) and out.p_value == pytest.approx(np.exp(-stat / 2))
+    assert out.delta_aic == pytest.approx(4.0 - stat) and out.dof == 2
+    assert lr_test(1.0, 1.0, 40.0, 0).p_value == 1.0

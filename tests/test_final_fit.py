@@ -6,7 +6,10 @@ import pytest
 
 from jaxheli.effects import plant as augmented, registry as effects
 from jaxheli.gap.final_fit import Stacked, final_fit
-from jaxheli.gap.ranking import predictor_pair, theta_box
+from jaxheli.gap.ranking import predictor_pair
+from jaxheli.gap.reference import theta_box
+from jaxheli.gap.significance import HeldOut, shrink_entries
+from jaxheli.gap.fit_effect import Fit
 from jaxheli.model import PARAM_NAMES, TABLE2
 from jaxheli.synth.excitation import Excitation
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS, piloted_flight
@@ -42,10 +45,20 @@ def test_a_drag_half_kept_by_the_base_model_is_recovered_on_both_flights():
     start = np.array(TABLE2)
     xu = PARAM_NAMES.index("Xu")
     start[xu] *= 1.3
-    entry = {"effect": "quadratic_drag", "params": {"Xuu": {"value": XUU / 2}, "Yvv": {"value": 0.0}},
-             "theta": dict(zip(PARAM_NAMES, map(float, start))), "nuisance": {}}
-    final = final_fit(train, validate, entry, theta_box(start))
-    assert final["effect"] == "quadratic_drag" and final["at_bound"] == []
-    assert final["params"]["Xuu"]["value"] == pytest.approx(XUU, rel=0.03)
-    assert final["theta"]["Xu"] == pytest.approx(TABLE2[xu], rel=0.1)
-    assert final["evidence_z"] > 2.0 and "Xuu" in final["summary"]
+    final = final_fit(train, validate, _entry(start), theta_box(start))
+    assert final.effect == "quadratic_drag" and final.fitted.at_bound == ()
+    assert final.fitted.params["Xuu"].value == pytest.approx(XUU, rel=0.03)
+    assert final.theta[xu] == pytest.approx(TABLE2[xu], rel=0.1)
+    assert final.fitted.evidence_z > 2.0 and "Xuu" in final.fitted.summary
+
+
+def _entry(theta):
+    """The ranking entry of a drag fitted at half its size (``Xuu = -2``, ``Yvv = 0``) with base parameters
+    ``theta``."""
+    k = len(effects.params("quadratic_drag", OUT))
+    z = np.zeros((2, k))
+    z[1, [p.name for p in effects.params("quadratic_drag", OUT)].index("Xuu")] = XUU / 2
+    fit = Fit(z=z, stderr=np.full((2, k), 0.1), theta=np.stack([theta, theta]), rss=np.ones(2), n_eff=np.ones(2),
+              k_active=np.zeros(2, int), steps=np.ones(2, int), converged=np.ones(2, bool))
+    (entry,) = shrink_entries(["quadratic_drag"], OUT, fit, HeldOut(np.ones((2, len(OUT))), np.ones((2, 4))), 10.0)
+    return entry

@@ -8,7 +8,7 @@ identified on the contaminated training flight (never the truth), in one box tha
 classes (:data:`BOX`): by PEM, or by IWO and its gradient polish (:data:`BASES`, :func:`base_model`). The
 diagnosis is the library's default: every candidate fitted jointly with the base parameters, credited beyond
 the base re-fitted alone (:func:`~jaxheli.gap.ranking.fit_and_score`) or the given base, whichever predicts the
-validation flight better (:func:`~jaxheli.gap.ranking.yardstick`).
+validation flight better (:func:`~jaxheli.gap.significance.yardstick`).
 The oracle is the identified base with the *true* effect, started at its true values and fitted jointly the
 same way; its own magnitude error shows how much of the diagnosis's is the identified base's. The named
 effect's size is then re-identified on both flights (:func:`~jaxheli.gap.final_fit.final_fit`). All trials of
@@ -49,9 +49,10 @@ from ..gap.final_fit import final_fit
 from . import truth as independent_truth
 from .independent import independent_trial
 from ..gap.fit_effect import with_reference
-from ..gap.ranking import (
-    MIN_SHRINK, MIN_Z, base_refit, fit_and_score, predictor_pair, shrink_entries, theta_box, withhold, yardstick,
-)
+from ..gap.records import Entry, Final, Refit
+from ..gap.ranking import fit_and_score, predictor_pair
+from ..gap.reference import base_refit, theta_box, withhold
+from ..gap.significance import MIN_SHRINK, MIN_Z, shrink_entries, yardstick
 
 KINDS: tuple[str, ...] = fx.ALL + ("none",)
 """Effect kinds of the blind check: every candidate plus the effect-free control."""
@@ -237,41 +238,44 @@ def run_trial(
     arrays = [np.vstack([a, o]) for a, o in zip(arrays, oracle)]
     cand = with_reference(*arrays, pad=len(no_effect(outputs)), shared=fx.nuisance_arrays(outputs))
     box = theta_box(theta, Bounds(*BOX))
-    fit, gaps, segs, rss_start = fit_and_score(train_pred, validate_pred, theta, cand, max_steps, box,
-                                               np.r_[owner, len(fx.ALL)], challenge=len(fx.ALL))
-    n = len(fx.ALL) + 1
-    credit_gaps, credit_segs = yardstick(gaps, segs)
-    ranking = shrink_entries(list(fx.ALL), outputs, jax.tree.map(lambda a: a[:n], fit), credit_gaps[1:n + 1],
-                             credit_segs[1:n + 1], min_shrink, shared=True)
-    refit = base_refit(fit, gaps, segs, outputs, rss_start, min_shrink)
+    scored = fit_and_score(train_pred, validate_pred, theta, cand, max_steps, box, np.r_[owner, len(fx.ALL)],
+                           challenge=len(fx.ALL))
+    rows = len(fx.ALL) + 1
+    credited = yardstick(scored.given, scored.rows)
+    ranking = shrink_entries(list(fx.ALL), outputs, jax.tree.map(lambda a: a[:rows], scored.fit),
+                             credited.take(slice(None, rows)), min_shrink, shared=True)
+    refit = base_refit(scored, outputs, min_shrink)
     ranking = withhold(ranking, refit)
-    best = next((e for e in ranking if e["significant"]), None)
+    best = next((e for e in ranking if e.significant), None)
     final = final_fit(train_pred, validate_pred, best, box) if best is not None else None
-    ranking = [{k: v for k, v in e.items() if k != "theta"} for e in ranking]
-    top = best["effect"] if best else "none"
+    top = best.effect if best else "none"
+    oracle_z, oracle_stderr = np.asarray(scored.fit.z[-1]), np.asarray(scored.fit.stderr[-1])
     record = {"kind": kind, "seed": int(seed), "truth_sim": truth, **facts, "truth": where.truth,
               "style": where.style, "noise": where.noise, "strength": where.strength, "top": top,
               "correct": top in right,
-              "in_tie": top in right or (best is not None and any(k in best["tied_with"] for k in right)),
+              "in_tie": top in right or (best is not None and any(k in best.tied_with for k in right)),
               "true_value": inj.value, "primary": inj.primary,
-              "oracle_shrink_pct": 100.0 * (1.0 - float(np.mean(gaps[-1]) / np.mean(credit_gaps[1]))),
-              "oracle_evidence_z": (fx.evidence(inj.kind, outputs, np.asarray(fit.z[-1]), np.asarray(fit.stderr[-1]))
+              "oracle_shrink_pct": 100.0 * (1.0 - float(np.mean(scored.rows.gap[-1]) / np.mean(credited.gap[0]))),
+              "oracle_evidence_z": (fx.evidence(inj.kind, outputs, oracle_z, oracle_stderr)
                                     if inj.kind != "none" else None),
-              "base": ident,
-              "base_refit": {k: v for k, v in refit.items() if k != "theta"}, "track": float(train_pred.track),
-              "ranking": ranking, "final": None if final is None else {k: v for k, v in final.items() if k != "theta"}}
+              "base": ident, "base_refit": _untheta(refit), "track": float(train_pred.track),
+              "ranking": [_untheta(e) for e in ranking], "final": None if final is None else _untheta(final)}
     if inj.primary is not None:
-        entry = next(e for e in ranking if e["effect"] == inj.kind)
-        trained = entry["params"][inj.primary]
-        reported = final["params"][inj.primary] if top == inj.kind else trained
-        described = fx.describe(inj.kind, outputs, np.asarray(fit.z[-1]), np.asarray(fit.stderr[-1]))[0]
-        oracle = described[inj.primary]["value"]
-        record.update(estimate=reported["value"], stderr=reported["stderr"],
-                      magnitude_error=_relative_error(reported["value"], inj.value), estimate_train=trained["value"],
-                      magnitude_error_train=_relative_error(trained["value"], inj.value),
-                      shrink_pct=entry["shrink_pct"],
+        entry = next(e for e in ranking if e.effect == inj.kind)
+        trained = entry.fitted.params[inj.primary]
+        reported = final.fitted.params[inj.primary] if top == inj.kind else trained
+        oracle = fx.describe(inj.kind, outputs, oracle_z, oracle_stderr)[0][inj.primary].value
+        record.update(estimate=reported.value, stderr=reported.stderr,
+                      magnitude_error=_relative_error(reported.value, inj.value), estimate_train=trained.value,
+                      magnitude_error_train=_relative_error(trained.value, inj.value),
+                      shrink_pct=entry.shrink_pct,
                       oracle_estimate=oracle, oracle_magnitude_error=_relative_error(oracle, inj.value))
     return record
+
+
+def _untheta(result: Entry | Refit | Final) -> dict[str, Any]:
+    """``result``'s JSON without its base parameters (a trial's record keeps the sizes, not 40 numbers each)."""
+    return {k: v for k, v in result.to_json().items() if k != "theta"}
 
 
 def _relative_error(value: float, true: float) -> float:
@@ -374,15 +378,15 @@ def _exit_with(parent: int, poll: float = 2.0) -> None:
 DETECTABLE_PCT = 10.0
 """Oracle shrink (%) from which an injected effect counts as detectable: the identified base model with the true
 effect, fitted jointly, shrinks the held-out gap of the better model without an effect
-(:func:`~jaxheli.gap.ranking.yardstick`) by at least this much (the default
-significance floor, :data:`~jaxheli.gap.ranking.MIN_SHRINK`). Below it the draw left the effect at the noise level
+(:func:`~jaxheli.gap.significance.yardstick`) by at least this much (the default
+significance floor, :data:`~jaxheli.gap.significance.MIN_SHRINK`). Below it the draw left the effect at the noise level
 of that flight (a bias the restarts absorb, a rotor coupling the collective hardly excites), and no diagnosis can
 attribute what the data do not show."""
 
 
 def identifiable(record: dict[str, Any]) -> bool:
     """A detectable trial (:data:`DETECTABLE_PCT`) whose *training* flight resolves the effect: the oracle's fitted
-    size stands :data:`~jaxheli.gap.ranking.MIN_Z` standard errors or more from no effect
+    size stands :data:`~jaxheli.gap.significance.MIN_Z` standard errors or more from no effect
     (:func:`~jaxheli.effects.registry.evidence`), the test every significant candidate must pass. The validation
     flight's 3-2-1-1 sticks (0.25) are larger than a regulating pilot's (about 0.08 at most): a saturation at 0.15-0.3
     stick then shrinks the held-out gap by 40-90 % once its true size is handed in, yet the training flight cannot

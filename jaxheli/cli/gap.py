@@ -13,7 +13,7 @@ from ..benchmark.blind import TRUTHS_SIM, markdown, run_benchmark
 from ..gap.compare import localise_model, write_localisation
 from ..gap.consistency import MAX_TRAVEL_M, check, write_check
 from ..gap.diagnose import diagnose, ranking_table, write_diagnosis
-from ..gap.ranking import MIN_SHRINK
+from ..gap.significance import MIN_SHRINK
 from ..gap.prepare import prepare
 from ..model import G_SI
 from ._options import add_load_options, add_sim_options, finding_line, outputs, read_flight, sim_options
@@ -155,14 +155,15 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         top=args.top, g=args.g, max_steps=args.max_steps, min_shrink=args.min_shrink, track=args.track,
         joint=not args.frozen_base,
     )
+    found = diagnosis.attribution
     print(f"diagnosis of {args.model}: trained on {train.source}, validated on {validate.source} "
-          f"(segment {args.segment:g} s, restart filter level {diagnosis['track']:g}; "
-          f"channels {','.join(diagnosis['outputs'])})")
+          f"(segment {args.segment:g} s, restart filter level {found.track:g}; "
+          f"channels {','.join(diagnosis.outputs)})")
     for line in ranking_table(diagnosis):
         print(line)
-    print(f"verdict: {diagnosis['verdict']}")
-    if diagnosis.get("final"):
-        print(f"its size re-identified with the base model on both flights: {diagnosis['final']['summary']}")
+    print(f"verdict: {found.verdict}")
+    if found.final is not None:
+        print(f"its size re-identified with the base model on both flights: {found.final.fitted.summary}")
     for path in write_diagnosis(diagnosis, theta, validate, args.out):
         print(f"wrote {path}")
     return 0

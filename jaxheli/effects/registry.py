@@ -9,6 +9,10 @@ names are in :data:`ALL`.
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 
 from .._types import Float
@@ -122,9 +126,63 @@ Z95 = 1.959963984540054
 """Half-width of a two-sided 95 % normal interval, in standard errors."""
 
 
-def describe(effect: str, outputs: tuple[str, ...], value: np.ndarray, stderr: np.ndarray) -> tuple[dict, list, str]:
-    """``(params, where, sentence)`` of a fitted effect: named values with standard errors, 95 % intervals
-    (value +- :data:`Z95` standard errors) and units, the
+@dataclasses.dataclass(frozen=True)
+class Estimate:
+    """A fitted effect parameter: value and standard error in ``unit``, its 95 % ``interval`` (value +-
+    :data:`Z95` standard errors) and where it acts (:attr:`Param.where`)."""
+
+    value: float
+    stderr: float
+    interval: tuple[float, float]
+    unit: str
+    where: str
+
+    def to_json(self) -> dict[str, Any]:
+        """``{value, stderr, interval, unit, where}``, the interval as a list."""
+        return {"value": self.value, "stderr": self.stderr, "interval": list(self.interval), "unit": self.unit,
+                "where": self.where}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Estimate:
+        """The inverse of :meth:`to_json` (``None``, a non-finite number in JSON, reads as NaN)."""
+        return cls(json_number(data["value"]), json_number(data["stderr"]), tuple(map(json_number, data["interval"])),
+                   data["unit"], data["where"])
+
+
+@dataclasses.dataclass(frozen=True)
+class Fitted:
+    """A fitted effect (or combination) in words and numbers (:func:`report`): its ``params`` by name, the
+    axes/channels ``where`` it acts, a ``summary`` sentence, the phrases naming parameters ``at_bound`` and its
+    ``evidence_z`` (standard errors from no effect, :func:`evidence`)."""
+
+    params: Mapping[str, Estimate]
+    where: tuple[str, ...]
+    summary: str
+    at_bound: tuple[str, ...]
+    evidence_z: float
+
+    def to_json(self) -> dict[str, Any]:
+        """``{params, where, summary, at_bound, evidence_z}``, sequences as lists."""
+        return {"params": {k: p.to_json() for k, p in self.params.items()}, "where": list(self.where),
+                "summary": self.summary, "at_bound": list(self.at_bound), "evidence_z": self.evidence_z}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Fitted:
+        """The inverse of :meth:`to_json`."""
+        return cls({k: Estimate.from_json(p) for k, p in data["params"].items()}, tuple(data["where"]),
+                   data["summary"], tuple(data["at_bound"]), json_number(data["evidence_z"]))
+
+
+def json_number(value: float | None) -> float:
+    """A number read back from JSON: ``None`` (a non-finite number, :func:`~jaxheli._json.json_ready`) as NaN."""
+    return float("nan") if value is None else float(value)
+
+
+def describe(
+    effect: str, outputs: tuple[str, ...], value: np.ndarray, stderr: np.ndarray,
+) -> tuple[dict[str, Estimate], list[str], str]:
+    """``(params, where, sentence)`` of a fitted effect: named :class:`Estimate` values (standard errors, 95 %
+    intervals and units), the
     axes/channels whose parameters differ from no-effect by more than two standard errors and by at least a
     quarter of the largest change among parameters of the same unit (else the strongest one), and a
     sentence such as ``"lat input delay 42 +- 6 ms"``."""
@@ -139,8 +197,7 @@ def describe(effect: str, outputs: tuple[str, ...], value: np.ndarray, stderr: n
     largest = {u: max(size[i] for i in range(len(ps)) if ps[i].unit == u) for u in {p.unit for p in ps}}
     strong = [i for i in range(len(ps)) if z[i] > 2.0 and size[i] >= 0.25 * largest[ps[i].unit]] or [int(np.argmax(z))]
     where = list(dict.fromkeys(ps[i].where for i in strong))
-    named = {p.name: {"value": float(v), "stderr": float(s), "interval": [float(v - Z95 * s), float(v + Z95 * s)],
-                      "unit": p.unit, "where": p.where}
+    named = {p.name: Estimate(float(v), float(s), (float(v - Z95 * s), float(v + Z95 * s)), p.unit, p.where)
              for p, v, s in zip(ps, shown, stderr)}
     sentence = "; ".join(_phrase(effect, ps[i], shown[i], stderr[i]) for i in strong)
     return named, where, sentence
@@ -172,7 +229,7 @@ def evidence(effect: str, outputs: tuple[str, ...], value: np.ndarray, stderr: n
     return float(max(z, default=0.0))
 
 
-def report(name: str, outputs: tuple[str, ...], value: np.ndarray, stderr: np.ndarray) -> dict:
+def report(name: str, outputs: tuple[str, ...], value: np.ndarray, stderr: np.ndarray) -> Fitted:
     """A fitted effect, or a combination ``"a+b"`` (its parts' values in turn), in words and numbers:
     ``params`` and ``where`` (:func:`describe`, merged over the parts), ``summary`` (their sentences, and the
     parameters :func:`at_bound` if any), ``at_bound`` and ``evidence_z`` (the largest part's :func:`evidence`)."""
@@ -190,7 +247,7 @@ def report(name: str, outputs: tuple[str, ...], value: np.ndarray, stderr: np.nd
         offset += n
     if bound:
         sentence.append("on the physical bound: " + ", ".join(bound))
-    return {"params": named, "where": where, "summary": "; ".join(sentence), "at_bound": bound, "evidence_z": z}
+    return Fitted(named, tuple(where), "; ".join(sentence), tuple(bound), z)
 
 
 def _phrase(effect: str, p: Param, value: float, stderr: float) -> str:

@@ -12,4 +12,7 @@ from .compare import frequency_comparison as frequency_comparison, localise_mode
 from .compare import localise_prediction as localise_prediction
 from .diagnose import diagnose as diagnose, write_diagnosis as write_diagnosis
 from .prepare import prepare as prepare
-from .ranking import diagnose_effects as diagnose_effects, rank_effects as rank_effects
+from .ranking import combine_effects as combine_effects, diagnose_effects as diagnose_effects
+from .ranking import predictor_pair as predictor_pair, rank_effects as rank_effects
+from .records import Attribution as Attribution, Diagnosis as Diagnosis, Entry as Entry, Final as Final
+from .records import Refit as Refit

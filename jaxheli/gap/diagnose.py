@@ -23,20 +23,22 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._json import json_ready
 from .._types import Array, Float
 from ..cost import nmse
 from ..evaluate import resolve_params
 from ..data.flight import FlightData, constant_outputs
 from ..problem import make_problem
-from ..model import G_SI, MEASURABLE, PARAM_NAMES
+from ..bounds import Bounds
+from ..model import G_SI, MEASURABLE
 from ..effects import registry as fx
 from ..effects.plant import no_effect
 from .consistency import check
 from .compare import frequency_comparison, localise_prediction
 from .fit_effect import effect_eta as effect_eta
-from .predictor import TRACK, Predictor, make_predictor
+from .predictor import Predictor, make_predictor
 from .ranking import diagnose_effects, predictor_pair
+from .records import Diagnosis, Entry, FlightSummary, Gap
+from .significance import MIN_SHRINK
 
 _NOT_STATES = ("a", "b")
 """Flapping columns of the real logs: stick multiples, never diagnosed."""
@@ -55,30 +57,20 @@ def shared_outputs(train: FlightData, validate: FlightData) -> tuple[str, ...]:
     return names
 
 
-def entry_theta(entry: dict[str, Any], theta: Float[np.ndarray, "40"]) -> Float[np.ndarray, "40"]:
-    """The base parameters a ranking entry's effect was fitted with (its ``theta``, jointly re-identified), or
-    ``theta`` for an entry without them."""
-    fitted = entry.get("theta")
-    return np.asarray(theta, np.float64) if fitted is None else np.array([fitted[n] for n in PARAM_NAMES])
-
-
 @eqx.filter_jit
 def _predict(pred: Predictor, thetas: Float[Array, "C 40"], etas: Float[Array, "C E"]) -> Float[Array, "C N k"]:
     return jax.vmap(pred)(thetas, etas)
 
 
 def predictions(
-    theta: Float[np.ndarray, "40"], flight: FlightData | Predictor, entries: Sequence[dict[str, Any]], *,
-    segment: float = 2.0, g: float = G_SI, track: float = TRACK,
+    theta: Float[np.ndarray, "40"], pred: Predictor, entries: Sequence[Entry],
 ) -> Float[np.ndarray, "C+1 N k"]:
     """Predicted outputs of the base model ``theta`` (first) and of each ranking entry's fitted effect with the
-    base parameters fitted with it (:func:`entry_theta`) on ``flight`` (all its channels), by the same
-    segment-wise predictor the ranking scores with (restart filter level ``track``: the diagnosis's
-    ``track``); given a predictor, its settings hold."""
-    pred = flight if isinstance(flight, Predictor) else make_predictor(flight, segment=segment, g=g, track=track)
-    etas = [no_effect(pred.outputs)] + [effect_eta(e["effect"], e["params"], pred.outputs, e.get("nuisance"))
+    base parameters fitted with it on ``pred``'s flight (all its channels), by the segment-wise predictor the
+    ranking scores with (:func:`~jaxheli.gap.ranking.predictor_pair`)."""
+    etas = [no_effect(pred.outputs)] + [effect_eta(e.effect, e.fitted.params, pred.outputs, e.nuisance)
                                         for e in entries]
-    thetas = [np.asarray(theta, np.float64)] + [entry_theta(e, theta) for e in entries]
+    thetas = [np.asarray(theta, np.float64)] + [e.theta for e in entries]
     return np.asarray(_predict(pred, jnp.asarray(np.stack(thetas)), jnp.asarray(np.stack(etas))))
 
 
@@ -93,21 +85,19 @@ def diagnose(
     top: int = 3,
     g: float = G_SI,
     localise_train: bool = True,
-    **options,
-) -> dict[str, Any]:
-    """JSON-ready diagnosis of ``model`` (anything :func:`jaxheli.resolve_params` takes).
+    track: float | None = None,
+    joint: bool = True,
+    bounds: Bounds | None = None,
+    max_steps: int = 40,
+    min_shrink: float = MIN_SHRINK,
+) -> Diagnosis:
+    """The diagnosis of ``model`` (anything :func:`jaxheli.resolve_params` takes).
 
-    Effects are fitted on ``train`` jointly with the base parameters (``joint=False`` in ``options``: the base
-    model held fixed) and scored on ``validate``; ``segment`` (s) is the restart interval of every
-    prediction, ``options`` (``max_steps``, ``min_shrink``, ``track``, ``joint``, ``bounds``) go to
-    :func:`~jaxheli.gap.ranking.diagnose_effects`. ``outputs`` default to :func:`shared_outputs`.
-
-    Returns ``model``, ``flights``, ``outputs``, ``consistency`` (findings of both flights, each with a
-    ``flight`` key), ``localisation`` (validation flight; the training flight's under ``train``),
-    ``ranking`` (best first), ``combination``, ``base_refit`` (:func:`~jaxheli.gap.ranking.base_refit`),
-    ``verdict``, ``track`` (the restart filter's level, tuned on
-    ``train`` unless ``options`` give it), ``gap_before`` (base model, per channel and
-    ``total`` = channel mean) and ``gap_after`` (``best`` entry and ``combination``, same layout, or ``None``).
+    Effects are fitted on ``train`` jointly with the base parameters in ``bounds`` (``joint=False``: the base
+    model held fixed) and scored on ``validate`` (:func:`~jaxheli.gap.ranking.diagnose_effects`, with ``top``,
+    ``max_steps`` and ``min_shrink``); ``segment`` (s) is the restart interval of every prediction and ``track``
+    the restart filter's level (``None``: tuned on ``train``). ``outputs`` default to :func:`shared_outputs`;
+    ``localise_train`` localises the training flight's gap too.
     """
     theta = resolve_params(model)
     names = tuple(outputs) if outputs is not None else shared_outputs(train, validate)
@@ -125,28 +115,29 @@ def diagnose(
             raise ValueError(f"{flight.source} ({role} flight): output channel(s) {flat} are constant; leave "
                              f"them out of outputs")
     train, validate = train.select(names), validate.select(names)
-    consistency = [{**f.to_json(), "flight": role} for role, flight in (("train", train), ("validate", validate))
-                   for f in check(flight)]
+    consistency = tuple({**f.to_json(), "flight": role} for role, flight in (("train", train), ("validate", validate))
+                        for f in check(flight))
     problems = [make_problem(f, outputs=names, g=g) for f in (train, validate)]
-    preds = predictor_pair(theta, *problems, segment=segment, g=g, track=options.pop("track", None))
-    ranked = diagnose_effects(theta, *preds, list(effects), top=top, **options)
+    preds = predictor_pair(theta, *problems, segment=segment, g=g, track=track)
+    attribution = diagnose_effects(theta, *preds, list(effects), top=top, joint=joint, bounds=bounds,
+                                   max_steps=max_steps, min_shrink=min_shrink)
     localisation = _localise_base(theta, validate, preds[1], segment)
     if localise_train:
         localisation["train"] = _localise_base(theta, train, preds[0], segment)
-    shown = [ranked["ranking"][0]] + ([ranked["combination"]] if ranked["combination"] else [])
-    gaps = np.asarray(nmse(predictions(theta, preds[1], shown), validate.outputs))
-    after = [{"effect": e["effect"], **_gap_block(gap, names)} for e, gap in zip(shown, gaps[1:])]
-    return json_ready({
-        "model": model if isinstance(model, (str, Path)) else "given parameters",
-        "flights": {role: _flight_block(f) for role, f in (("train", train), ("validate", validate))},
-        "outputs": list(names),
-        "segment_s": segment,
-        "consistency": consistency,
-        "localisation": localisation,
-        **ranked,
-        "gap_before": _gap_block(gaps[0], names),
-        "gap_after": {"best": after[0], "combination": after[1] if len(after) > 1 else None},
-    })
+    gaps = [_gap(gap, names) for gap in np.asarray(nmse(predictions(theta, preds[1], attribution.shown),
+                                                          validate.outputs))]
+    return Diagnosis(
+        model=str(model) if isinstance(model, (str, Path)) else "given parameters",
+        flights={role: _flight_summary(f) for role, f in (("train", train), ("validate", validate))},
+        outputs=names,
+        segment_s=segment,
+        consistency=consistency,
+        localisation=localisation,
+        attribution=attribution,
+        gap_before=gaps[0],
+        gap_best=gaps[1],
+        gap_combination=gaps[2] if len(gaps) > 2 else None,
+    )
 
 
 def _localise_base(
@@ -160,41 +151,43 @@ def _localise_base(
     return localise_prediction(theta, flight, base, flight.output_names, simulation)
 
 
-def _gap_block(gap: np.ndarray, names: tuple[str, ...]) -> dict[str, Any]:
-    return {"channel": dict(zip(names, map(float, gap))), "total": float(np.mean(gap))}
+def _gap(gap: np.ndarray, names: tuple[str, ...]) -> Gap:
+    return Gap(dict(zip(names, map(float, gap))), float(np.mean(gap)))
 
 
-def _flight_block(flight: FlightData) -> dict[str, Any]:
-    return {"source": flight.source, "samples": flight.n_samples, "dt": flight.dt,
-            "preprocessing": flight.metadata.get("preprocessing", [])}
+def _flight_summary(flight: FlightData) -> FlightSummary:
+    return FlightSummary(flight.source, flight.n_samples, flight.dt,
+                         tuple(flight.metadata.get("preprocessing", [])))
 
 
 def write_diagnosis(
-    diagnosis: dict[str, Any], theta: Float[np.ndarray, "40"], validate: FlightData, out: str | Path,
+    diagnosis: Diagnosis, theta: Float[np.ndarray, "40"], validate: FlightData, out: str | Path,
 ) -> list[Path]:
-    """Write ``diagnosis.json``, ``consistency.json`` and the PNGs (residual bands, lag correlation, frequency
-    response, before/after time histories on ``validate``) into ``out``."""
+    """Write ``diagnosis.json`` (:meth:`~jaxheli.gap.records.Diagnosis.to_json`), ``consistency.json`` and the PNGs
+    (residual bands, lag correlation, frequency response, before/after time histories on ``validate``) into
+    ``out``."""
     from ..plots import plot_frequency_response
     from .plots import plot_lag_correlation, plot_residual_bands
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    names = tuple(diagnosis["outputs"])
+    names = diagnosis.outputs
     flight = validate.select(names)
-    local = diagnosis["localisation"]
-    (out / "diagnosis.json").write_text(json.dumps(diagnosis, indent=1))
-    (out / "consistency.json").write_text(json.dumps(diagnosis["consistency"], indent=1))
-    shown = [e for e in (diagnosis["ranking"][0], diagnosis["combination"]) if e]
-    predicted = predictions(theta, flight, shown, segment=diagnosis["segment_s"], g=local["simulation"]["g"],
-                            track=diagnosis["track"])
-    estimate, model = frequency_comparison(theta, flight, names, local["simulation"]["g"])
+    content = diagnosis.to_json()
+    local = content["localisation"]
+    g = local["simulation"]["g"]
+    (out / "diagnosis.json").write_text(json.dumps(content, indent=1))
+    (out / "consistency.json").write_text(json.dumps(content["consistency"], indent=1))
+    shown = diagnosis.attribution.shown
+    pred = make_predictor(flight, segment=diagnosis.segment_s, g=g, track=diagnosis.attribution.track)
+    estimate, model = frequency_comparison(theta, flight, names, g)
     return [
         out / "diagnosis.json",
         out / "consistency.json",
         plot_residual_bands(local, out / "residual_bands.png", title=flight.source),
         plot_lag_correlation(local, out / "lag_correlation.png"),
         plot_frequency_response(estimate, model, names, out / "frequency_response.png", title=flight.source),
-        plot_before_after(flight, predicted, ["base model"] + [f"+ {e['effect']}" for e in shown],
+        plot_before_after(flight, predictions(theta, pred, shown), ["base model"] + [f"+ {e.effect}" for e in shown],
                           out / "before_after.png"),
     ]
 
@@ -226,34 +219,34 @@ def plot_before_after(
     return _save(fig, path)
 
 
-def ranking_table(diagnosis: dict[str, Any]) -> list[str]:
+def ranking_table(diagnosis: Diagnosis) -> list[str]:
     """The ranked effects as text lines: shrink on the validation flight (total with its standard error, and
     per channel), significance (``*``; ``=`` when tied with another), and first the base model re-fitted
     alone when the diagnosis re-identified jointly (its shrink of the given base; the effects' shrinks are
     beyond it)."""
-    names = diagnosis["outputs"]
+    names, before, found = diagnosis.outputs, diagnosis.gap_before, diagnosis.attribution
     head = f"  {'effect':<22}{'shrink %':>9}{'+-':>6}  {'sig':<4}" + "".join(f"{n:>8}" for n in names) + "  fitted"
-    rows = [e for e in (*diagnosis["ranking"], diagnosis["combination"]) if e]
-    lines = [head, f"  {'(base gap nmse)':<22}{diagnosis['gap_before']['total']:>9.3g}{'':>6}  {'':<4}"
-             + "".join(f"{diagnosis['gap_before']['channel'][n]:>8.3g}" for n in names)]
-    refit = diagnosis.get("base_refit") or {}
-    if refit.get("joint"):
-        before, after = diagnosis["gap_before"]["channel"], refit["gap_by_channel"]
-        lines.append(f"  {'(base re-fitted)':<22}{_num(refit['shrink_pct'], '.1f'):>9}"
-                     f"{_num(refit['shrink_se_pct'], '.1f'):>6}  {'U' if refit['under_fitted'] else '':<4}"
-                     + "".join(f"{_num(_pct(before[n], after[n]), '.1f'):>8}" for n in names)
+    lines = [head, f"  {'(base gap nmse)':<22}{before.total:>9.3g}{'':>6}  {'':<4}"
+             + "".join(f"{before.channel[n]:>8.3g}" for n in names)]
+    refit = found.base_refit
+    if refit is not None:
+        after = refit.gap_by_channel
+        lines.append(f"  {'(base re-fitted)':<22}{_num(refit.shrink_pct, '.1f'):>9}"
+                     f"{_num(refit.shrink_se_pct, '.1f'):>6}  {'U' if refit.under_fitted else '':<4}"
+                     + "".join(f"{_num(_pct(before.channel[n], after[n]), '.1f'):>8}" for n in names)
                      + "  effects below: shrink beyond this")
-    for e in rows:
-        by = e["shrink_by_channel"]
-        mark = ("=" if e.get("tied_with") else "*") if e["significant"] else ""
-        lines.append(f"  {e['effect']:<22}{_num(e['shrink_pct'], '.1f'):>9}{_num(e.get('shrink_se_pct'), '.1f'):>6}"
-                     f"  {mark:<4}" + "".join(f"{_num(by[n], '.1f'):>8}" for n in names) + f"  {e.get('summary', '')}")
+    for e in (*found.ranking, *found.shown[1:]):
+        mark = ("=" if e.tied_with else "*") if e.significant else ""
+        lines.append(f"  {e.effect:<22}{_num(e.shrink_pct, '.1f'):>9}{_num(e.shrink_se_pct, '.1f'):>6}"
+                     f"  {mark:<4}" + "".join(f"{_num(e.shrink_by_channel[n], '.1f'):>8}" for n in names)
+                     + f"  {e.fitted.summary}")
     return lines
 
 
-def _pct(before: float | None, after: float | None) -> float | None:
-    return None if before is None or after is None or before == 0 else 100.0 * (before - after) / before
+def _pct(before: float, after: float) -> float:
+    return float("nan") if before == 0 else 100.0 * (before - after) / before
 
 
-def _num(value: float | None, fmt: str) -> str:
-    return "-" if value is None else format(value, fmt)
+def _num(value: float, fmt: str) -> str:
+    """``value`` formatted, or ``-`` where it is not finite (``null`` in ``diagnosis.json``)."""
+    return format(value, fmt) if np.isfinite(value) else "-"

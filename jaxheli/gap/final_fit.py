@@ -18,8 +18,6 @@ the rotor coupling (36 to 39 %). Nothing in the ranking or the verdict depends o
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -29,9 +27,9 @@ from .._types import Array, Float
 from ..bounds import Bounds
 from ..effects import registry as fx
 from ..effects.plant import no_effect
-from ..model import PARAM_NAMES
 from .fit_effect import effect_eta, fit_candidates, fitted_nuisance, with_reference
 from .predictor import Predictor
+from .records import Entry, Final
 
 
 class Stacked(eqx.Module):
@@ -49,25 +47,20 @@ class Stacked(eqx.Module):
         return jnp.concatenate([p.measured for p in self.flights])
 
 
-def final_fit(
-    train: Predictor, validate: Predictor, entry: dict[str, Any], box: Bounds, max_steps: int = 60,
-) -> dict[str, Any]:
-    """``entry``'s effect (a ranking entry or combination, jointly fitted: with its ``theta``, ``params`` and
-    ``nuisance``) and the base parameters re-fitted on ``train`` and ``validate`` together (Levenberg-Marquardt,
-    ``max_steps``, the base parameters in ``box``, the effect in its physical box), started from the entry's fit:
-    ``{"effect", "params", "where", "summary", "at_bound", "evidence_z", "rss", "steps", "theta", "nuisance"}``
-    (:func:`~jaxheli.effects.registry.report`; ``rss`` over both flights)."""
+def final_fit(train: Predictor, validate: Predictor, entry: Entry, box: Bounds, max_steps: int = 60) -> Final:
+    """``entry``'s effect (a ranking entry or combination, jointly fitted: with its ``theta`` and ``nuisance``)
+    and the base parameters re-fitted on ``train`` and ``validate`` together (Levenberg-Marquardt, ``max_steps``,
+    the base parameters in ``box``, the effect in its physical box), started from the entry's fit (``rss`` over
+    both flights)."""
     outputs = train.outputs
-    index, start, lower, upper = fx.candidate_arrays(entry["effect"].split("+"), outputs, combine=True)
+    index, start, lower, upper = fx.candidate_arrays(entry.effect.split("+"), outputs, combine=True)
     cand = jax.tree.map(lambda a: a[1:], with_reference(index, start, lower, upper, len(no_effect(outputs)),
                                                          fx.nuisance_arrays(outputs)))
-    eta = np.r_[effect_eta(entry["effect"], entry["params"], outputs, entry.get("nuisance")), 0.0]
+    eta = np.r_[effect_eta(entry.effect, entry.fitted.params, outputs, entry.nuisance), 0.0]
     cand = dataclasses.replace(cand, start=jnp.clip(jnp.asarray(eta)[cand.index], cand.lower, cand.upper))
-    theta = jnp.asarray([entry["theta"][n] for n in PARAM_NAMES])
-    fit = fit_candidates(Stacked((train, validate)), theta, jnp.asarray(no_effect(outputs)), cand, max_steps,
-                         box)
+    fit = fit_candidates(Stacked((train, validate)), jnp.asarray(entry.theta), jnp.asarray(no_effect(outputs)), cand,
+                         max_steps, box)
     value = np.asarray(fit.z[0])
-    report = fx.report(entry["effect"], outputs, value, np.asarray(fit.stderr[0]))
-    return {"effect": entry["effect"], **report, "rss": float(fit.rss[0]), "steps": int(fit.steps[0]),
-            "theta": dict(zip(PARAM_NAMES, map(float, np.asarray(fit.theta[0])))),
-            "nuisance": fitted_nuisance(value, outputs, report["params"])}
+    fitted = fx.report(entry.effect, outputs, value, np.asarray(fit.stderr[0]))
+    return Final(entry.effect, fitted, float(fit.rss[0]), int(fit.steps[0]), np.asarray(fit.theta[0], np.float64),
+                 fitted_nuisance(value, outputs, fitted.params))

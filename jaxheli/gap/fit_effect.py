@@ -25,7 +25,7 @@ channels), i.e. counting effective samples ``n_eff = N_res (1 - r1) / (1 + r1)``
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Collection, Mapping
 
 import equinox as eqx
 import jax
@@ -50,12 +50,12 @@ def embed(base: Float[Array, "E"], index: Int[Array, "K"], z: Float[Array, "K"])
 
 
 def effect_eta(
-    effect: str, params: dict[str, dict[str, float]], outputs: tuple[str, ...],
-    nuisance: dict[str, float] | None = None,
+    effect: str, params: Mapping[str, fx.Estimate], outputs: tuple[str, ...],
+    nuisance: Mapping[str, float] | None = None,
 ) -> Float[np.ndarray, "E"]:
-    """``eta`` of a ranking entry: its fitted ``params`` (as :func:`~jaxheli.effects.registry.describe` names them)
-    and ``nuisance`` values (by name, :func:`~jaxheli.effects.registry.nuisance`) on the no-effect vector;
-    ``effect`` may be a combination ``"a+b"``."""
+    """``eta`` of a fitted effect (a ranking entry's or the final fit's): its fitted ``params`` (as
+    :func:`~jaxheli.effects.registry.describe` names them) and ``nuisance`` values (by name,
+    :func:`~jaxheli.effects.registry.nuisance`) on the no-effect vector; ``effect`` may be a combination ``"a+b"``."""
     eta = no_effect(outputs)
     for p in fx.nuisance(outputs):
         eta[p.slot] = (nuisance or {}).get(p.name, eta[p.slot])
@@ -63,16 +63,16 @@ def effect_eta(
         for p in fx.params(part, outputs):
             if p.name not in params:
                 raise ValueError(f"effect {effect!r}: fitted parameter {p.name!r} missing from its entry")
-            eta[p.slot] = params[p.name]["value"]
+            eta[p.slot] = params[p.name].value
     return eta
 
 
-def fitted_nuisance(value: np.ndarray, outputs: tuple[str, ...], params: dict[str, Any]) -> dict[str, float]:
+def fitted_nuisance(value: np.ndarray, outputs: tuple[str, ...], exclude: Collection[str] = ()) -> dict[str, float]:
     """The nuisance parameters a row fitted in its trailing columns (:func:`with_reference`),
-    by name, but those among the effect's own ``params``."""
+    by name, but those in ``exclude`` (the effect's own parameters)."""
     ps = fx.nuisance(outputs)
     tail = np.asarray(value, np.float64)[len(value) - len(ps):]
-    return {p.name: float(v) for p, v in zip(ps, tail) if p.name not in params}
+    return {p.name: float(v) for p, v in zip(ps, tail) if p.name not in exclude}
 
 
 class Candidates(eqx.Module):

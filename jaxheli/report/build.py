@@ -9,11 +9,11 @@ from pathlib import Path
 from ..data.flight import FlightData
 from . import sections as s
 from .html import page
-from .inputs import Diagnosis, ResultSource, load_diagnosis, load_flights, load_results
+from .inputs import DiagnosisSource, ResultSource, load_diagnosis, load_flights, load_results
 
 
 def build_report(
-    results: Sequence[ResultSource], flights: Sequence[FlightData] = (), diagnosis: Diagnosis | None = None
+    results: Sequence[ResultSource], flights: Sequence[FlightData] = (), diagnosis: DiagnosisSource | None = None
 ) -> str:
     """The self-contained HTML document (inline CSS, PNGs as base64) for ``results`` compared side by side."""
     parts = {

@@ -43,7 +43,7 @@ class ResultSource:
 
 
 @dataclasses.dataclass(frozen=True)
-class Diagnosis:
+class DiagnosisSource:
     """A gap diagnosis: ``diagnosis.json`` (``None`` if only a consistency check was given), its
     ``consistency`` findings (from the diagnosis or ``consistency.json``) and the PNG plots beside it."""
 
@@ -65,7 +65,7 @@ def load_results(paths: Sequence[str | Path]) -> list[ResultSource]:
     ]
 
 
-def load_diagnosis(path: str | Path) -> Diagnosis:
+def load_diagnosis(path: str | Path) -> DiagnosisSource:
     """Read ``diagnosis.json`` and/or ``consistency.json`` from a folder, or one such JSON file."""
     path = Path(path)
     folder = path if path.is_dir() else path.parent
@@ -87,7 +87,7 @@ def load_diagnosis(path: str | Path) -> Diagnosis:
                 consistency = _findings(f, data["consistency"])
         else:
             raise ValueError(f"{f}: expected a JSON object (diagnosis) or list (consistency findings)")
-    return Diagnosis(path, content, consistency, _pngs(folder))
+    return DiagnosisSource(path, content, consistency, _pngs(folder))
 
 
 def load_flights(results: Sequence[ResultSource], data: Sequence[str | Path] = ()) -> list[FlightData]:

@@ -20,7 +20,7 @@ from ..model import G_SI, PARAM_NAMES, PINNED, STATE_UNITS
 from ..results import PLOT_CHANNELS
 from .figures import convergence_png, frequency_png, time_domain_png
 from .html import Html, esc, json_view, note, num, png_figure, section, table, tag
-from .inputs import Diagnosis, ResultSource, recorded_sources
+from .inputs import DiagnosisSource, ResultSource, recorded_sources
 
 SECTION_IDS: tuple[str, ...] = (
     "overview", "data-summary", "parameters", "metrics", "verification", "frequency-response", "convergence",
@@ -39,7 +39,7 @@ _BLOCKS = (("train", "training flight"), ("validate", "validation flight, initia
            ("zero_initial_state", "validation flight, from rest (the paper)"))
 
 
-def overview(results: Sequence[ResultSource], flights: Sequence[FlightData], diagnosis: Diagnosis | None) -> Html:
+def overview(results: Sequence[ResultSource], flights: Sequence[FlightData], diagnosis: DiagnosisSource | None) -> Html:
     """Which results are compared, how each was run, and what else went into the report."""
     rows = [[r.label, str(r.folder), r.content.get("seed", "-"), r.settings.get("iterations", "-"),
              r.settings.get("trials", "-"), ", ".join(r.settings.get("outputs", [])), num(r.settings.get("segment")),
@@ -229,7 +229,7 @@ def convergence(results: Sequence[ResultSource]) -> Html:
     return section("convergence", TITLES["convergence"], *body)
 
 
-def diagnosis(diag: Diagnosis | None, results: Sequence[ResultSource]) -> Html:
+def diagnosis(diag: DiagnosisSource | None, results: Sequence[ResultSource]) -> Html:
     """Localisation summary, ranked effects and consistency findings from ``jaxheli diagnose`` / ``check``;
     without them, how to produce them."""
     if diag is None:

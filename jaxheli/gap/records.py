@@ -1,0 +1,320 @@
+"""The diagnosis's results as frozen records: a ranking entry, the base model re-fitted alone, the named effect
+re-identified on both flights, the attribution they make up and the whole diagnosis.
+
+The records stay typed inside the library; ``to_json`` / ``from_json`` are for the edges only (the CLI, files,
+the report, the blind benchmark's records). ``to_json`` gives plain Python values with the keys and key order
+of the files ``jaxheli diagnose`` writes (:meth:`Diagnosis.to_json` makes them strict JSON with
+:func:`~jaxheli._json.json_ready`: non-finite numbers become ``None``, and ``from_json`` reads ``None`` back as
+NaN)."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from .._json import json_ready
+from .._types import Float
+from ..effects.registry import Fitted, json_number
+from ..model import PARAM_NAMES
+
+
+Theta = Float[np.ndarray, "40"]
+"""Base parameters in the order of :data:`~jaxheli.model.PARAM_NAMES` (JSON: an object by name)."""
+
+
+def _named(theta: Theta) -> dict[str, float]:
+    return dict(zip(PARAM_NAMES, map(float, np.asarray(theta))))
+
+
+def _theta(named: Mapping[str, float | None]) -> Theta:
+    return np.array([json_number(named[n]) for n in PARAM_NAMES])
+
+
+def _floats(named: Mapping[str, float | None]) -> dict[str, float]:
+    return {k: json_number(v) for k, v in named.items()}
+
+
+_WRITE = {"Mapping[str, float]": dict, "Theta": _named, "tuple[str, ...]": list,
+          "tuple[Mapping[str, Any], ...]": list}
+"""How a record field of each annotated type is written to JSON (as it is where not named here)."""
+
+_READ = {"float": json_number, "int": int, "bool": bool, "str": str, "Mapping[str, float]": _floats,
+         "Theta": _theta, "tuple[str, ...]": tuple, "tuple[Mapping[str, Any], ...]": tuple}
+"""How a record field of each annotated type is read back from JSON."""
+
+
+def _write(record: Any, *omit: str) -> dict[str, Any]:
+    """The fields of a frozen record but ``omit``, by name, as JSON values (:data:`_WRITE`), in field order."""
+    return {f.name: _WRITE.get(f.type, _same)(getattr(record, f.name)) for f in dataclasses.fields(record)
+            if f.name not in omit}
+
+
+def _same(value: Any) -> Any:
+    return value
+
+
+def _json(record: Any) -> dict[str, Any] | None:
+    return None if record is None else record.to_json()
+
+
+def _maybe(read: Any, data: Mapping[str, Any] | None) -> Any:
+    return None if data is None else read(data)
+
+
+def _read(cls: type, data: Mapping[str, Any], **given: Any) -> Any:
+    """The record ``cls`` of JSON ``data``: the fields ``given``, the others read by their type (:data:`_READ`)."""
+    return cls(**{f.name: given[f.name] if f.name in given else _READ[f.type](data[f.name])
+                  for f in dataclasses.fields(cls)})
+
+
+@dataclasses.dataclass(frozen=True)
+class LRTest:
+    """Likelihood-ratio test of a candidate against the reference on the training flight
+    (:func:`~jaxheli.gap.significance.lr_test`)."""
+
+    statistic: float
+    dof: int
+    p_value: float
+    delta_aic: float
+
+    def to_json(self) -> dict[str, Any]:
+        """``{statistic, dof, p_value, delta_aic}``."""
+        return _write(self)
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> LRTest:
+        """The inverse of :meth:`to_json`."""
+        return _read(cls, data)
+
+
+@dataclasses.dataclass(frozen=True)
+class Entry:
+    """One ranked candidate effect (or a combination ``"a+b"``), fitted on the training flight and scored on the
+    validation flight (:func:`~jaxheli.gap.significance.shrink_entries`).
+
+    Attributes:
+        effect: the candidate's name.
+        fitted: its fitted values with standard errors and 95 % intervals, where it acts, in words
+            (:func:`~jaxheli.effects.registry.report`).
+        shrink_pct: held-out shrink (%) of the reference's gap; ``shrink_se_pct`` its paired standard error (%);
+            ``shrink_by_channel`` per output channel (%).
+        significant: past every test of :mod:`~jaxheli.gap.significance`; ``tied_with`` the significant
+            candidates within its noise.
+        lr: likelihood-ratio test on the training flight; ``p_value`` the one-sided window t-test.
+        gap_base, gap: the reference's and the candidate's channel-mean gap on the validation flight.
+        converged: the solver's flag.
+        theta: ``[40]`` base parameters fitted with the effect; ``nuisance`` the nuisance values fitted with it,
+            by name (empty unless re-identified jointly).
+    """
+
+    effect: str
+    fitted: Fitted
+    shrink_pct: float
+    shrink_se_pct: float
+    shrink_by_channel: Mapping[str, float]
+    significant: bool
+    lr: LRTest
+    p_value: float
+    gap_base: float
+    gap: float
+    converged: bool
+    theta: Theta
+    nuisance: Mapping[str, float]
+    tied_with: tuple[str, ...] = ()
+
+    def to_json(self) -> dict[str, Any]:
+        """The entry as ``jaxheli diagnose`` writes it; parameters named as in :data:`~jaxheli.PARAM_NAMES`."""
+        f = self.fitted.to_json()
+        return {"effect": self.effect, "where": f["where"], "params": f["params"], "shrink_pct": self.shrink_pct,
+                "shrink_se_pct": self.shrink_se_pct, "shrink_by_channel": dict(self.shrink_by_channel),
+                "significant": self.significant, "at_bound": f["at_bound"], "evidence_z": f["evidence_z"],
+                "lr": self.lr.to_json(), "p_value": self.p_value, "gap_base": self.gap_base, "gap": self.gap,
+                "summary": f["summary"], "converged": self.converged, "theta": _named(self.theta),
+                "nuisance": dict(self.nuisance), "tied_with": list(self.tied_with)}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Entry:
+        """The inverse of :meth:`to_json`."""
+        return _read(cls, data, fitted=Fitted.from_json(data), lr=LRTest.from_json(data["lr"]))
+
+
+@dataclasses.dataclass(frozen=True)
+class Refit:
+    """The base model re-fitted alone, jointly re-identified (:func:`~jaxheli.gap.reference.base_refit`): its
+    held-out shrink (%) of the given base's gap with standard error, both gaps (channel mean) and its gap per
+    channel, whether the given base is ``under_fitted``, the solver's flag, ``progress_pct`` (how far its training
+    RSS still fell over the candidates' budget), ``settled``, LM ``steps``, the re-fitted ``theta[40]`` and
+    nuisance values."""
+
+    shrink_pct: float
+    shrink_se_pct: float
+    gap_base: float
+    gap: float
+    gap_by_channel: Mapping[str, float]
+    under_fitted: bool
+    converged: bool
+    progress_pct: float
+    settled: bool
+    steps: int
+    theta: Theta
+    nuisance: Mapping[str, float]
+
+    def to_json(self) -> dict[str, Any]:
+        """``{"joint": True, ...}`` as ``jaxheli diagnose`` writes it (a frozen base, no re-fit, writes
+        ``{"joint": False}``)."""
+        return {"joint": True, **_write(self)}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Refit | None:
+        """The inverse of :meth:`to_json` (``None`` for a frozen base)."""
+        return _read(cls, data) if data["joint"] else None
+
+
+@dataclasses.dataclass(frozen=True)
+class Final:
+    """The named effect re-identified with the base model on both flights (:func:`~jaxheli.gap.final_fit.final_fit`):
+    its fit, the training plus validation RSS, LM ``steps``, the base parameters ``theta[40]`` and nuisance values
+    fitted with it."""
+
+    effect: str
+    fitted: Fitted
+    rss: float
+    steps: int
+    theta: Theta
+    nuisance: Mapping[str, float]
+
+    def to_json(self) -> dict[str, Any]:
+        """``{effect, params, where, summary, at_bound, evidence_z, rss, steps, theta, nuisance}``."""
+        return {"effect": self.effect, **self.fitted.to_json(), **_write(self, "effect", "fitted")}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Final:
+        """The inverse of :meth:`to_json`."""
+        return _read(cls, data, fitted=Fitted.from_json(data))
+
+
+@dataclasses.dataclass(frozen=True)
+class Attribution:
+    """Which effect (:func:`~jaxheli.gap.ranking.diagnose_effects`): the ranking, best first; the joint fit of
+    the significant effects (``None`` unless two or more); the base re-fitted alone (``None``: frozen base); a
+    sentence; the best significant effect re-identified on both flights (``None`` without one, or frozen); the
+    restart filter's level every fit used."""
+
+    ranking: tuple[Entry, ...]
+    combination: Entry | None
+    base_refit: Refit | None
+    verdict: str
+    final: Final | None
+    track: float
+
+    @property
+    def shown(self) -> tuple[Entry, ...]:
+        """The entries the before/after predictions show: the best, then the combination if any."""
+        return (self.ranking[0],) + (() if self.combination is None else (self.combination,))
+
+    def to_json(self) -> dict[str, Any]:
+        """``{ranking, combination, base_refit, verdict, final, track}``."""
+        return {"ranking": [e.to_json() for e in self.ranking], "combination": _json(self.combination),
+                "base_refit": _json(self.base_refit) or {"joint": False}, "verdict": self.verdict,
+                "final": _json(self.final), "track": self.track}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Attribution:
+        """The inverse of :meth:`to_json`."""
+        return _read(cls, data, ranking=tuple(map(Entry.from_json, data["ranking"])),
+                     combination=_maybe(Entry.from_json, data["combination"]),
+                     base_refit=Refit.from_json(data["base_refit"]), final=_maybe(Final.from_json, data["final"]))
+
+
+@dataclasses.dataclass(frozen=True)
+class Gap:
+    """A model's gap on the validation flight: per channel and ``total`` (the channel mean)."""
+
+    channel: Mapping[str, float]
+    total: float
+
+    def to_json(self) -> dict[str, Any]:
+        """``{channel, total}``."""
+        return _write(self)
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Gap:
+        """The inverse of :meth:`to_json` (other keys ignored)."""
+        return _read(cls, data)
+
+
+@dataclasses.dataclass(frozen=True)
+class FlightSummary:
+    """A diagnosed flight: its source, sample count, step (s) and preprocessing records."""
+
+    source: str
+    samples: int
+    dt: float
+    preprocessing: tuple[Mapping[str, Any], ...]
+
+    def to_json(self) -> dict[str, Any]:
+        """``{source, samples, dt, preprocessing}``."""
+        return _write(self)
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> FlightSummary:
+        """The inverse of :meth:`to_json`."""
+        return _read(cls, data)
+
+
+@dataclasses.dataclass(frozen=True)
+class Diagnosis:
+    """The whole diagnosis of a model on a training and a validation flight (:func:`~jaxheli.gap.diagnose.diagnose`).
+
+    Attributes:
+        model: what the model was given as (a file or set name, or ``"given parameters"``).
+        flights: ``{"train", "validate"}`` summaries.
+        outputs: the channels diagnosed; ``segment_s`` the predictions' restart interval (s).
+        consistency: data-consistency findings of both flights, as JSON (:meth:`Finding.to_json` with a
+            ``flight`` key).
+        localisation: where the base model misses the validation flight (the training flight's under ``train``),
+            as :func:`~jaxheli.gap.compare.localise_prediction` gives it.
+        attribution: the ranked effects and what follows from them.
+        gap_before: the base model's gap; ``gap_best`` and ``gap_combination`` those of the best entry and the
+            combination (``None`` without one).
+    """
+
+    model: str
+    flights: Mapping[str, FlightSummary]
+    outputs: tuple[str, ...]
+    segment_s: float
+    consistency: tuple[Mapping[str, Any], ...]
+    localisation: Mapping[str, Any]
+    attribution: Attribution
+    gap_before: Gap
+    gap_best: Gap
+    gap_combination: Gap | None
+
+    def to_json(self) -> dict[str, Any]:
+        """``diagnosis.json``: strict JSON values (:func:`~jaxheli._json.json_ready`), ``gap_after`` holding the
+        shown entries' gaps under ``best`` and ``combination``, each with its ``effect``."""
+        gaps = (self.gap_best, self.gap_combination)
+        after = [{"effect": e.effect, **g.to_json()} for e, g in zip(self.attribution.shown, gaps)]
+        return json_ready({
+            "model": self.model,
+            "flights": {role: f.to_json() for role, f in self.flights.items()},
+            "outputs": list(self.outputs),
+            "segment_s": self.segment_s,
+            "consistency": list(self.consistency),
+            "localisation": self.localisation,
+            **self.attribution.to_json(),
+            "gap_before": self.gap_before.to_json(),
+            "gap_after": {"best": after[0], "combination": after[1] if len(after) > 1 else None},
+        })
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Diagnosis:
+        """The inverse of :meth:`to_json` (arrays of the localisation come back as lists)."""
+        after = data["gap_after"]
+        return _read(cls, data, flights={role: FlightSummary.from_json(f) for role, f in data["flights"].items()},
+                     localisation=data["localisation"], attribution=Attribution.from_json(data),
+                     gap_before=Gap.from_json(data["gap_before"]), gap_best=Gap.from_json(after["best"]),
+                     gap_combination=_maybe(Gap.from_json, after["combination"]))

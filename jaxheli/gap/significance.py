@@ -1,0 +1,148 @@
+"""Whether a candidate effect is significant: its held-out shrink over the reference, the noise floor, paired
+standard errors, ties, and the likelihood-ratio test beside them.
+
+A candidate is significant when its held-out shrink over the reference is at least ``min_shrink`` % (the noise
+floor, :data:`MIN_SHRINK` by default) and at least :data:`SIG_SIGMA` of its own standard error (windows of the
+validation flight paired, :func:`paired_se`) unless it is :data:`LARGE_SHRINK` or more; when no fitted parameter
+sits on its physical bound (:func:`jaxheli.effects.registry.at_bound`: a 0.5 s "input delay" has absorbed something
+else); and when its fitted size lies :data:`MIN_Z` standard errors or more from no effect. Two significant
+candidates whose shrinks differ by less than :data:`TIE_SIGMA` standard errors of their paired difference are a tie
+(``tied_with``; e.g. a delay and a first-order lag at low frequency): the verdict names the set.
+
+Beside the held-out shrink each entry carries a likelihood-ratio test on the training flight (``lr``:
+``n_eff ln(RSS_ref / RSS)`` against chi-squared with as many degrees of freedom as effect parameters the fit
+resolved, and the AIC difference) and ``p_value``, a one-sided t-test over 0.5 s validation windows of the
+log ratio of reference to candidate residual energy. Neither is part of the verdict: an effect that acts
+only at large inputs (saturation, drag) concentrates its gain in a few windows, and window tests then miss
+shrinks of 60-90 % that the blind check knows are real."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import numpy as np
+import scipy.stats
+
+from .._types import Float
+from ..effects import registry as fx
+from .fit_effect import Fit, fitted_nuisance
+from .records import Entry, LRTest
+
+MIN_SHRINK = 10.0
+"""Default noise floor (%): the smallest held-out shrink that can be significant. Calibrated on effect-free
+flights whose base model is identified the way a user's is (the blind check's controls on seeds 100-119,
+never scored, :func:`~jaxheli.benchmark.blind.run_trial`): re-identified jointly and credited against the challenged
+reference, spurious candidates that passed every other test shrank the gap by at most 9.3 % (a quadratic drag),
+so none of the 20 was significant (5 of 20 were with a 3 % floor and no challenge); the blind check calls an
+effect detectable from a 10 % oracle shrink."""
+
+MIN_Z = 1.0
+"""Smallest distance of a significant effect from no effect, in standard errors of its fitted size
+(:func:`~jaxheli.effects.registry.evidence`): a shrink bought by parameters indistinguishable from zero (a
+"2 +- 3 ms delay") is model error the fit absorbed, not the effect. On the blind check (seeds 0-19 of every kind,
+100-119 of the controls, biases, drags and saturations; credited against the :func:`yardstick`), of the candidates
+that passed every other test, 10 spurious ones stood below 1 standard error (an effect-free control's saturation
+at 0.01 among them) and 7 true ones (five saturations at 0.02-0.08, whose limit this linearisation hardly sees, a
+rotor coupling, a drag); between 1 and 2 stood six true effects (four biases, a drag, a saturation: 1.02-1.82) and
+one spurious drag (1.86, behind its trial's true bias). A bound of 2 lost those six."""
+
+SIG_SIGMA = 1.645
+"""Standard errors (paired over validation windows) a shrink below :data:`LARGE_SHRINK` must stand above zero
+to be significant: a one-sided 5 % test."""
+
+LARGE_SHRINK = 15.0
+"""Held-out shrink (%) that is significant without the window test: an effect that acts only in large
+manoeuvres (saturation, a long delay) concentrates its shrink in their few windows, so its window standard
+error is large even when the effect is real (a 58 +- 29 % saturation, a 47 +- 29 % delay); effect-free
+flights, an under-fitted base model included, gave at most 9.4 % (``tests/test_diagnose.py``, the blind
+check's controls)."""
+
+TIE_SIGMA = 2.0
+"""Standard errors (paired over validation windows) by which two candidates' shrinks must differ not to be a
+tie."""
+
+
+class HeldOut(NamedTuple):
+    """Scores of one or more models on the validation flight: gap per channel (:func:`jaxheli.cost.nmse`) and
+    residual energy per significance window (:meth:`~jaxheli.gap.predictor.Predictor.segment_energy`)."""
+
+    gap: Float[np.ndarray, "*R k"]
+    energy: Float[np.ndarray, "*R S"]
+
+    def take(self, rows: int | slice | np.ndarray) -> HeldOut:
+        """The scores of ``rows``."""
+        return HeldOut(self.gap[rows], self.energy[rows])
+
+
+def paired_se(seg_a: np.ndarray, seg_b: np.ndarray, total: float) -> float:
+    """Standard error (%) of ``100 (sum seg_a - sum seg_b) / total``, the windows taken as paired samples."""
+    d = np.asarray(seg_a, np.float64) - np.asarray(seg_b, np.float64)
+    return float(100.0 * np.sqrt(d.size) * np.std(d, ddof=1) / total) if d.size > 1 else float("inf")
+
+
+def lr_test(rss_ref: float, rss: float, n_eff: float, dof: int) -> LRTest:
+    """Likelihood-ratio test of a candidate against the reference on the training flight (Gaussian errors,
+    variance profiled out): ``statistic = n_eff ln(RSS_ref / RSS)``, ``p_value`` of chi-squared with ``dof``
+    degrees of freedom, ``delta_aic = 2 dof - statistic`` (negative favours the candidate)."""
+    stat = float(n_eff * np.log(rss_ref / rss)) if rss > 0 and rss_ref > 0 else 0.0
+    p = float(scipy.stats.chi2.sf(max(stat, 0.0), dof)) if dof > 0 else 1.0
+    return LRTest(stat, int(dof), p, 2.0 * dof - stat)
+
+
+def shrink_entries(
+    names: list[str], outputs: tuple[str, ...], fit: Fit, held: HeldOut, min_shrink: float, shared: bool = False,
+) -> list[Entry]:
+    """Ranking entries of the candidates ``names``, best first (``theta``: the base parameters fitted with the
+    effect; ``nuisance``: the nuisance values fitted with it, by name, when ``shared``: the fits freed them in their
+    trailing columns, :func:`~jaxheli.gap.fit_effect.with_reference`).
+
+    Row 0 of ``fit`` (training) and of ``held`` (validation, ``[1 + C]`` rows) is the reference; row ``c + 1`` the
+    candidate ``names[c]``.
+    """
+    gap_ref, seg_ref = np.asarray(held.gap[0]), np.asarray(held.energy[0])
+    total_ref, energy = float(np.mean(gap_ref)), float(np.sum(seg_ref))
+    out = []
+    for c, name in enumerate(names, start=1):
+        value = np.asarray(fit.z[c])
+        fitted = fx.report(name, outputs, value, np.asarray(fit.stderr[c]))
+        shrink = 100.0 * (total_ref - float(np.mean(held.gap[c]))) / total_ref
+        se = paired_se(seg_ref, held.energy[c], energy)
+        d = np.log(seg_ref) - np.log(held.energy[c])
+        p_value = float(scipy.stats.ttest_1samp(d, 0.0, alternative="greater").pvalue) if np.ptp(d) > 0 else 1.0
+        out.append(Entry(
+            effect=name,
+            fitted=fitted,
+            shrink_pct=shrink,
+            shrink_se_pct=se,
+            shrink_by_channel={ch: 100.0 * float((gb - g) / gb) for ch, gb, g in zip(outputs, gap_ref, held.gap[c])},
+            significant=bool(shrink >= min_shrink and (shrink >= SIG_SIGMA * se or shrink >= LARGE_SHRINK)
+                             and not fitted.at_bound and fitted.evidence_z >= MIN_Z),
+            lr=lr_test(float(fit.rss[0]), float(fit.rss[c]), float(fit.n_eff[c]),
+                       int(fit.k_active[c] - fit.k_active[0])),
+            p_value=p_value,
+            gap_base=total_ref,
+            gap=float(np.mean(held.gap[c])),
+            converged=bool(fit.converged[c]),
+            theta=np.asarray(fit.theta[c], np.float64),
+            nuisance=fitted_nuisance(value, outputs, fitted.params) if shared else {},
+        ))
+    tied = [tuple(o.effect for j, o in enumerate(out) if j != i and e.significant and o.significant
+                  and abs(e.shrink_pct - o.shrink_pct) < TIE_SIGMA * paired_se(held.energy[i + 1],
+                                                                                held.energy[j + 1], energy))
+            for i, e in enumerate(out)]
+    return sorted((dataclasses.replace(e, tied_with=t) for e, t in zip(out, tied)), key=lambda e: -e.shrink_pct)
+
+
+def yardstick(given: HeldOut, rows: HeldOut) -> HeldOut:
+    """``rows`` (row 0 the reference, then the candidates; :func:`~jaxheli.gap.ranking.fit_and_score`) with the
+    reference replaced by the ``given`` base when that predicts the validation flight better: candidates are
+    credited only beyond the better of the two models without an effect. A re-fit of the base alone can over-fit
+    the training flight (30 of the blind check's 180 trials on seeds 0-19 predicted the validation flight worse
+    after it, up to 40 times the given base's gap); against it, any candidate that merely stays near the given base
+    is credited."""
+    if float(np.mean(given.gap)) >= float(np.mean(rows.gap[0])):
+        return rows
+    gap, energy = np.array(rows.gap), np.array(rows.energy)
+    gap[0], energy[0] = given.gap, given.energy
+    return HeldOut(gap, energy)
