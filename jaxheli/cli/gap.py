@@ -89,7 +89,13 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                         "jaxheli.benchmark.truth (default library)")
     p.add_argument("--kinds", nargs="+", choices=tuple(dict.fromkeys(k for ks in TRUTHS_SIM.values() for k in ks)),
                    help="effect kinds of that truth (default all + none)")
-    p.add_argument("--seeds", type=int, default=2, help="trials per kind (default 2; the Done-when asks 20)")
+    p.add_argument("--split", choices=("design", "calibration", "test"), default="design",
+                   help="seed range of the protocol in jaxheli/gap/thresholds.json: design (anything goes), "
+                        "calibration (sets the thresholds), test (run once per release, never changes a rule; "
+                        "default design)")
+    p.add_argument("--seeds", type=int, default=2, help="trials per effect kind, the split's first seeds (default 2)")
+    p.add_argument("--control-seeds", type=int, default=None,
+                   help="trials of the effect-free control (kind none; default twice --seeds)")
     p.add_argument("--duration", type=float, default=30.0, help="flight length, s (default 30)")
     p.add_argument("--dt", type=float, default=0.05, help="sample time, s (default 0.05)")
     p.add_argument("--max-steps", type=int, default=15, help="LM steps per candidate fit (default 15)")
@@ -172,7 +178,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 def _cmd_blind(args: argparse.Namespace) -> int:
     kinds = args.kinds or list(TRUTHS_SIM[args.truth])
     summary = run_benchmark(kinds, args.seeds, args.out, workers=args.workers, iwo_seeds=args.iwo_seeds,
-                            truth=args.truth, duration=args.duration, dt=args.dt, max_steps=args.max_steps,
+                            truth=args.truth, split=args.split, control_seeds=args.control_seeds, duration=args.duration, dt=args.dt, max_steps=args.max_steps,
                             pem_steps=args.pem_steps, iterations=args.iterations)
     print(markdown(summary))
     print(f"runtime {summary['runtime_s']:.0f} s; wrote {Path(args.out) / 'blind.json'} and blind.md")

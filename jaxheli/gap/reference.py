@@ -23,9 +23,10 @@ from ..effects.plant import no_effect
 from .fit_effect import Candidates, Fit, embed, fit_candidates, fitted_nuisance, score
 from .predictor import Predictor
 from .records import Entry, Refit
+from .thresholds import THRESHOLDS
 from .significance import SIG_SIGMA, HeldOut, paired_se
 
-SETTLED_PCT = 1.0
+SETTLED_PCT = THRESHOLDS.settled_pct
 """Training-RSS decrease (%) of the reference over the candidates' step budget below which it counts as
 settled. A reference still falling (3 % on a base identified with 3 PEM steps, against 0.1 % on the truth
 model with a delay withheld) is no yardstick: every candidate's extra freedom buys more of the same descent,
@@ -43,7 +44,7 @@ REFERENCE_ROUNDS = 3
 CHALLENGERS = 3
 """Most candidates whose base parameters the reference is re-fitted from (:func:`challenge`)."""
 
-START_TIE_PCT = 0.5
+START_TIE_PCT = THRESHOLDS.start_tie_pct
 """Training-RSS difference (%) within which two starts of one candidate fit equally well (:func:`best_rows`)."""
 
 

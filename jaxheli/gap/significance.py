@@ -27,17 +27,19 @@ import scipy.stats
 from .._types import Float
 from ..effects import registry as fx
 from .fit_effect import Fit, fitted_nuisance
+from .thresholds import THRESHOLDS
 from .records import Entry, LRTest
 
-MIN_SHRINK = 10.0
-"""Default noise floor (%): the smallest held-out shrink that can be significant. Calibrated on effect-free
+MIN_SHRINK = THRESHOLDS.min_shrink
+"""(Every value here is read from the thresholds file, :mod:`jaxheli.gap.thresholds`, which records the commit
+and seeds that set it.) Default noise floor (%): the smallest held-out shrink that can be significant. Calibrated on effect-free
 flights whose base model is identified the way a user's is (the blind check's controls on seeds 100-119,
 never scored, :func:`~jaxheli.benchmark.blind.run_trial`): re-identified jointly and credited against the challenged
 reference, spurious candidates that passed every other test shrank the gap by at most 9.3 % (a quadratic drag),
 so none of the 20 was significant (5 of 20 were with a 3 % floor and no challenge); the blind check calls an
 effect detectable from a 10 % oracle shrink."""
 
-MIN_Z = 1.0
+MIN_Z = THRESHOLDS.min_z
 """Smallest distance of a significant effect from no effect, in standard errors of its fitted size
 (:func:`~jaxheli.effects.registry.evidence`): a shrink bought by parameters indistinguishable from zero (a
 "2 +- 3 ms delay") is model error the fit absorbed, not the effect. On the blind check (seeds 0-19 of every kind,
@@ -47,18 +49,18 @@ at 0.01 among them) and 7 true ones (five saturations at 0.02-0.08, whose limit 
 rotor coupling, a drag); between 1 and 2 stood six true effects (four biases, a drag, a saturation: 1.02-1.82) and
 one spurious drag (1.86, behind its trial's true bias). A bound of 2 lost those six."""
 
-SIG_SIGMA = 1.645
+SIG_SIGMA = THRESHOLDS.sig_sigma
 """Standard errors (paired over validation windows) a shrink below :data:`LARGE_SHRINK` must stand above zero
 to be significant: a one-sided 5 % test."""
 
-LARGE_SHRINK = 15.0
+LARGE_SHRINK = THRESHOLDS.large_shrink
 """Held-out shrink (%) that is significant without the window test: an effect that acts only in large
 manoeuvres (saturation, a long delay) concentrates its shrink in their few windows, so its window standard
 error is large even when the effect is real (a 58 +- 29 % saturation, a 47 +- 29 % delay); effect-free
 flights, an under-fitted base model included, gave at most 9.4 % (``tests/test_diagnose.py``, the blind
 check's controls)."""
 
-TIE_SIGMA = 2.0
+TIE_SIGMA = THRESHOLDS.tie_sigma
 """Standard errors (paired over validation windows) by which two candidates' shrinks must differ not to be a
 tie."""
 

@@ -39,7 +39,13 @@ def detectability(theta: np.ndarray, effects: Effects, validate: Record, noise: 
     ``seed``: the same flight re-flown without them gives ``y_clean`` (``noise`` holds ``sigma_k``)."""
     clean = fly(theta, Effects(), style=VALIDATE_STYLE, duration=duration, dt=dt, seed=seed, noise=noise,
                 outputs=outputs)
-    rms = np.sqrt(np.mean((validate.clean - clean.clean) ** 2, axis=0))
+    return detectability_ratio(validate.clean, clean.clean, noise)
+
+
+def detectability_ratio(with_effect: np.ndarray, without: np.ndarray, noise: np.ndarray) -> float:
+    """``max_k rms_t(with_effect - without) / noise_k``: noise-free readings ``[N, k]`` of one flight with and
+    without an effect against each channel's sensor-noise std (the module docstring's criterion, > 1)."""
+    rms = np.sqrt(np.mean((np.asarray(with_effect) - np.asarray(without)) ** 2, axis=0))
     return float(np.max(rms / np.asarray(noise)))
 
 
