@@ -1,5 +1,6 @@
 """The box-constrained Levenberg-Marquardt / Gauss-Newton of the least-squares engines against scipy's bounded
-least squares (``lsq_linear`` and the trust-region-reflective ``least_squares``), and never outside the box."""
+least squares (``lsq_linear`` and the trust-region-reflective ``least_squares``), and never outside the box; the
+engines' driver (penalty past the box, the start kept unless the answer is better)."""
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -8,7 +9,8 @@ import optimistix as optx
 import pytest
 import scipy.optimize
 
-from jaxheli.optim.boxed_lm import BoxedLeastSquares
+from jaxheli.bounds import Bounds
+from jaxheli.optim.boxed_lm import BoxedLeastSquares, boxed_least_squares, least_squares_solver
 
 
 def _solve(fn, y0, n_bounded, solver="lm", args=None, max_steps=200):
@@ -75,3 +77,34 @@ def test_unbounded_tail_is_not_clipped():
 def test_bad_solver_name():
     with pytest.raises(ValueError, match="'lm' or 'gn'"):
         BoxedLeastSquares(1e-8, 1e-8, 1, "newton")
+
+
+def test_driver_answer_is_clipped_into_the_box_and_matches_scipy(linear):
+    """The penalty pulls the iterates back towards the box; the answer kept is clipped into it."""
+    a, b = linear
+    expected = scipy.optimize.lsq_linear(a, b, bounds=(0.0, 1.0), tol=1e-14).x
+    u0 = jnp.full(6, 0.5)
+    sol = boxed_least_squares(lambda u, _: a @ u - b, least_squares_solver("lm", 1e-10, 1e-10, 6), u0, None, 200)
+    got = np.asarray(sol.value)
+    assert bool(sol.improved) and float(sol.loss[1]) < float(sol.loss[0])
+    assert np.all((got >= 0.0) & (got <= 1.0)) and {0, 4, 5} <= set(np.flatnonzero((got == 0.0) | (got == 1.0)))
+    # the penalty (weight 1e3) leaves the active axes ~1e-5 past their bound before clipping (measured: the free
+    # axis 1.2e-5 from scipy's)
+    np.testing.assert_allclose(got, expected, atol=1e-4)
+    start_loss = np.sum((a @ np.asarray(u0) - b) ** 2)  # the default score: the penalised sum of squares
+    np.testing.assert_allclose(float(sol.loss[0]), start_loss, rtol=1e-12)
+
+
+def test_driver_keeps_the_start_unless_the_answer_scores_no_worse(linear):
+    a, b = linear
+    u0 = jnp.full(6, 0.5)
+
+    def worse(start, answer, _):
+        """Rates the answer worse than the start, whatever it is."""
+        return jnp.stack([0.0, 1.0]), (start, Bounds.clip_unit(answer))
+
+    sol = boxed_least_squares(lambda u, _: a @ u - b, least_squares_solver("lm", 1e-10, 1e-10, 6), u0, None, 200,
+                              worse)
+    assert not bool(sol.improved) and int(sol.num_steps) > 0
+    np.testing.assert_array_equal(np.asarray(sol.value), np.asarray(u0))
+    np.testing.assert_array_equal(np.asarray(sol.kept(*sol.aux)), np.asarray(u0))

@@ -1,5 +1,5 @@
 """Fit candidate effects, batched: one compiled Levenberg-Marquardt solve mapped over all candidates (the engines'
-solver, :func:`jaxheli.optim.pem.least_squares_solver`; ``lax.map``, not ``vmap``: vmapped, the solves, each
+driver, :func:`jaxheli.optim.boxed_lm.boxed_least_squares`; ``lax.map``, not ``vmap``: vmapped, the solves, each
 a loop over forward-mode scans, deadlocked XLA CPU's runtime with every thread waiting, for the nine fits of
 ``tests/test_diagnose.py``'s clean-flight diagnosis in a plain process and for 23 fits under the test suite's
 XLA flags; mapped, neither hangs). The solve compiles with :data:`jaxheli._xla.QUICK_COMPILE`: it runs a few
@@ -31,7 +31,6 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 
 from .._types import Array, Float, Int
 from .._xla import QUICK_COMPILE
@@ -40,7 +39,7 @@ from ..cost import nmse
 from ..effects import registry as fx
 from ..effects.plant import no_effect
 from ..model import N_PARAMS
-from ..optim.pem import least_squares_solver
+from ..optim.boxed_lm import boxed_least_squares, least_squares_solver
 from .predictor import Predictor
 
 
@@ -145,15 +144,10 @@ def fit_candidates(
             th, z = split(u)
             return pred.residuals(th, embed(base, idx, z))
 
-        def residuals(u, _):
-            return jnp.concatenate([fit_res(u), Bounds.penalty(u)])
-
         u0 = box.to_unit(p0)
-        solver = least_squares_solver("lm", 1e-6, 1e-8, u0.shape[0])
-        sol = optx.least_squares(residuals, solver, u0, max_steps=max_steps, throw=False)
-        r0, r1 = residuals(u0, None), residuals(sol.value, None)
-        better = jnp.all(jnp.isfinite(sol.value)) & (jnp.sum(r1**2) <= jnp.sum(r0**2))
-        u = jnp.where(better, Bounds.clip_unit(sol.value), u0)
+        sol = boxed_least_squares(lambda u, _: fit_res(u), least_squares_solver("lm", 1e-6, 1e-8, u0.shape[0]), u0,
+                                  None, max_steps)
+        u = sol.value
         res = fit_res(u)
         J = jax.jacfwd(fit_res)(u)
         rss = jnp.sum(res**2)
@@ -163,8 +157,7 @@ def fit_candidates(
         stderr = jnp.where(active, box.width * jnp.sqrt(jnp.abs(jnp.diag(cov))), 0.0)
         th, z = split(u)
         k = z0.shape[0]
-        return (z, stderr[-k:], th, rss, res.shape[0] / colour, jnp.sum(active[-k:]), sol.stats["num_steps"],
-                sol.result == optx.RESULTS.successful)
+        return z, stderr[-k:], th, rss, res.shape[0] / colour, jnp.sum(active[-k:]), sol.num_steps, sol.successful
 
     return Fit(*jax.lax.map(lambda row: one(*row), (cand.index, cand.start, cand.lower, cand.upper)))
 

@@ -10,7 +10,7 @@ cost (:func:`jaxheli.spectra.cifer_cost`)::
 
 (``J <= 100`` per pair: acceptable, ``<= 50``: excellent). Levenberg-Marquardt minimises the sum of the pairs'
 ``J`` as least squares on :func:`jaxheli.spectra.cifer_residuals`, in the unit coordinates of the bounds with
-PEM's penalty past a bound and its margin (:mod:`jaxheli.optim.pem`), from ``starts`` points at once (one
+the engines' penalty past a bound and margin (:mod:`jaxheli.optim.boxed_lm`), from ``starts`` points at once (one
 vmapped solve): the given start, if any, and the best of many points drawn uniformly in the box (scoring ``J`` needs no simulation,
 so thousands cost seconds; the box's middle is a poor start: every control derivative is 0 there). The lowest
 average ``J`` wins. From the authors' wide box most starts still end in local minima (phase wrapping, the yaw
@@ -42,7 +42,8 @@ from ..model import INPUT_NAMES, PARAM_NAMES
 from ..problem import Problem, Records, as_problem, parts
 from ..spectra import cifer_cost, cifer_residuals, default_segment, estimate_frequency_response
 from ..spectra import model_frequency_response
-from .pem import Solver, least_squares_solver, start_vector
+from .boxed_lm import FreeAxes, Solver, boxed_least_squares, least_squares_solver
+from .pem import start_vector
 
 MIN_COHERENCE = 0.6
 """Partial coherence ``gamma^2`` a bin needs to be fitted (CIFER's usual threshold)."""
@@ -162,43 +163,41 @@ def average_j(targets: tuple[FrequencyTarget, ...], theta: Array) -> Array:
     return jnp.where(jnp.isfinite(mean), mean, jnp.inf)
 
 
-class _Boxed(eqx.Module):
-    """The residuals as a function of the free parameters' unit coordinates (PEM's box penalty appended)."""
-
-    targets: tuple[FrequencyTarget, ...]
-    bounds: Bounds
-    base: Float[Array, "40"]
-    free: tuple[bool, ...] = eqx.field(static=True)
-
-    def theta(self, v: Float[Array, " n"]) -> Float[Array, "40"]:
-        return self.bounds.embed(self.base, np.array(self.free), v)
+_Fitted = tuple[tuple[FrequencyTarget, ...], FreeAxes]
+"""The records' responses and the parameters the solver moves."""
 
 
-def _residual(v: Array, boxed: _Boxed) -> Array:
-    theta = boxed.theta(v)
-    return jnp.concatenate([t.residuals(theta) for t in boxed.targets] + [Bounds.penalty(v)])
+def _residual(v: Array, fitted: _Fitted) -> Array:
+    targets, axes = fitted
+    theta = axes.theta(v)
+    return jnp.concatenate([t.residuals(theta) for t in targets])
+
+
+def _score(v0: Array, v: Array, fitted: _Fitted) -> tuple[Array, tuple[Array, Array]]:
+    """Average ``J`` at the start ``v0`` and at the answer ``v`` clipped into the box (``[2]``), and their
+    parameters."""
+    targets, axes = fitted
+    thetas = axes.theta(v0), axes.theta(Bounds.clip_unit(v))
+    return jnp.stack([average_j(targets, th) for th in thetas]), thetas
 
 
 @eqx.filter_jit
-def _screen(boxed: _Boxed, v: Float[Array, "S n"]) -> Float[Array, " S"]:
+def _screen(fitted: _Fitted, v: Float[Array, "S n"]) -> Float[Array, " S"]:
     """Average ``J`` of each row of unit coordinates."""
-    return jax.lax.map(lambda x: average_j(boxed.targets, boxed.theta(x)), v, batch_size=250)
+    targets, axes = fitted
+    return jax.lax.map(lambda x: average_j(targets, axes.theta(x)), v, batch_size=250)
 
 
 @eqx.filter_jit(compiler_options=QUICK_COMPILE)
 def _solve(
-    boxed: _Boxed, v0: Float[Array, "K n"], solver: optx.AbstractLeastSquaresSolver, max_steps: int
+    fitted: _Fitted, v0: Float[Array, "K n"], solver: optx.AbstractLeastSquaresSolver, max_steps: int
 ) -> tuple[Array, Array, Array, Array, Array]:
     """One least-squares solve per start, vmapped; each keeps its start unless the solver lowered the average
     ``J``. Returns ``theta [K, 40]``, average ``J`` at the start and the end ``[K]``, steps and success ``[K]``."""
 
     def one(v):
-        sol = optx.least_squares(_residual, solver, v, args=boxed, max_steps=max_steps, throw=False)
-        th0, th1 = boxed.theta(v), boxed.theta(Bounds.clip_unit(sol.value))
-        j0, j1 = average_j(boxed.targets, th0), average_j(boxed.targets, th1)
-        better = jnp.all(jnp.isfinite(th1)) & (j1 <= j0)
-        return (jnp.where(better, th1, th0), j0, jnp.where(better, j1, j0), sol.stats["num_steps"],
-                sol.result == optx.RESULTS.successful)
+        sol = boxed_least_squares(_residual, solver, v, fitted, max_steps, _score)
+        return sol.kept(*sol.aux), sol.loss[0], sol.kept(*sol.loss), sol.num_steps, sol.successful
 
     return jax.vmap(one)(v0)
 
@@ -284,21 +283,21 @@ def frequency_fit(
                                 segment_seconds=segment_seconds, pairs=pairs)
     bounds = problem.bounds
     base, mask = start_vector(start, bounds), bounds.free_mask(free)
-    boxed = _Boxed(targets, bounds, jnp.asarray(base), tuple(bool(m) for m in mask))
-    v0 = Bounds.clip_unit(bounds.to_unit(jnp.asarray(base))[np.flatnonzero(mask)])[None][: int(start is not None)]
+    axes = FreeAxes(bounds, base, mask)
+    v0 = axes.start()[None][: int(start is not None)]
     wanted = starts - v0.shape[0]
     if wanted:
         drawn = jax.random.uniform(jax.random.PRNGKey(seed), (max(screen, wanted), v0.shape[1]), v0.dtype)
-        v0 = jnp.concatenate([v0, drawn[jnp.argsort(_screen(boxed, drawn))[:wanted]]])
+        v0 = jnp.concatenate([v0, drawn[jnp.argsort(_screen((targets, axes), drawn))[:wanted]]])
     theta, j0, j1, steps, ok = (np.asarray(a) for a in _solve(
-        boxed, v0, least_squares_solver(solver, rtol, atol, v0.shape[1]), int(max_steps)))
+        (targets, axes), v0, least_squares_solver(solver, rtol, atol, v0.shape[1]), int(max_steps)))
     best = int(np.argmin(j1))
     report = cifer_report(targets, theta[best])
     part = parts(problem)[0]
     lo, hi = default_band(part.dt) if band is None else band
     return FrequencyFitResult(
         theta=theta[best],
-        theta_start=np.asarray(boxed.theta(v0[best])),
+        theta_start=np.asarray(axes.theta(v0[best])),
         free=tuple(n for n, m in zip(PARAM_NAMES, mask) if m),
         j=report["j"], bins=report["bins"], j_average=report["j_average"],
         start_j=j0, final_j=j1, n_steps=steps, success=ok,

@@ -8,11 +8,11 @@ hover model still gives bounded residuals. The solve is one ``optimistix.least_s
 (Levenberg-Marquardt or Gauss-Newton) on the free parameters in the unit box coordinates of
 :class:`jaxheli.bounds.Bounds` (each axis normalised to its bound width). Bounds: the residuals carry a penalty
 ``PENALTY (u - clip(u))`` (:meth:`~jaxheli.bounds.Bounds.penalty`) on the distance outside the box, the
-solver's steps stay within :data:`MARGIN` of it (:mod:`jaxheli.optim.boxed_lm`), and the answer is clipped into
-the box: a path may cut briefly past a bound (holding parameters exactly at a bound stalled fits whose truth lies
-near one) but cannot wander off. Unlike a sigmoid map
-``lower + width sigmoid(z)``, this keeps unit slope at and near a bound (a sigmoid flattens there and froze
-parameters that started within 0.1 % of a bound, e.g. ``Nr`` at -10, in our tests).
+solver's steps stay within :data:`~jaxheli.optim.boxed_lm.MARGIN` of it (:mod:`jaxheli.optim.boxed_lm`), and the
+answer is clipped into the box: a path may cut briefly past a bound (holding parameters exactly at a bound stalled
+fits whose truth lies near one) but cannot wander off. Unlike a sigmoid map ``lower + width sigmoid(z)``, this keeps
+unit slope at and near a bound (a sigmoid flattens there and froze parameters that started within 0.1 % of a bound,
+e.g. ``Nr`` at -10, in our tests).
 
 Several records (:class:`jaxheli.problem.Records`) concatenate their residuals, so the sums of squares add; the
 initial state of each can be fitted with the parameters (``fit``'s ``fit_x0``, as the output-error polish does).
@@ -40,7 +40,7 @@ from ..cost import paper_cost, pearson
 from ..data.flight import FlightData
 from ..model import N_PARAMS, PARAM_NAMES
 from ..problem import Problem, Records, as_problem, parts
-from .boxed_lm import BoxedLeastSquares, Solver
+from .boxed_lm import FreeAxes, Solver, boxed_least_squares, least_squares_solver
 
 _BIG = 1e3
 """Normalised residual (signal standard deviations) past which it is compressed logarithmically."""
@@ -98,25 +98,11 @@ Objective = Literal["pem", "pearson"]
 
 
 class _Boxed(eqx.Module):
-    """An objective's residuals as a function of ``v``, the unit coordinates of the free axes (kept within
-    :data:`MARGIN` of ``[0, 1]`` by the solver; a penalty past the box is appended)."""
+    """An objective on ``problem`` and the parameters its solver moves (``axes``: the start is ``axes.base``)."""
 
     problem: Problem | Records
-    base: Float[Array, "40"]
-    free: tuple[bool, ...] = eqx.field(static=True)
+    axes: FreeAxes
     objective: Objective = eqx.field(static=True)
-
-    @property
-    def n_free(self) -> int:
-        return sum(self.free)
-
-    def theta(self, v: Float[Array, " n"]) -> Float[Array, "40"]:
-        """Physical parameters: the free axes from ``v`` (unclipped), the others from ``base``."""
-        return self.problem.bounds.embed(self.base, np.array(self.free), v)
-
-    def v0(self) -> Float[Array, " n"]:
-        """The start: ``base``, clipped into the box."""
-        return Bounds.clip_unit(self.problem.bounds.to_unit(self.base)[np.flatnonzero(np.array(self.free))])
 
     def of_outputs(self, part: Problem, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch m"]:
         """The objective's residuals of one record's outputs."""
@@ -124,9 +110,8 @@ class _Boxed(eqx.Module):
 
 
 def _residual(v: Array, boxed: _Boxed) -> Array:
-    theta = boxed.theta(v)
-    fits = [boxed.of_outputs(part, part.sim(theta)) for part in parts(boxed.problem)]
-    return jnp.concatenate(fits + [Bounds.penalty(v)])
+    theta = boxed.axes.theta(v)
+    return jnp.concatenate([boxed.of_outputs(part, part.sim(theta)) for part in parts(boxed.problem)])
 
 
 def _scores(theta: Array, boxed: _Boxed) -> tuple[Array, Array, Array]:
@@ -140,35 +125,27 @@ def _scores(theta: Array, boxed: _Boxed) -> tuple[Array, Array, Array]:
     return loss, cost, rss
 
 
+def _score(v0: Array, v: Array, boxed: _Boxed) -> tuple[Array, tuple[Array, Array, Array]]:
+    """The objective's sum of squares at the start (``base``) and at the answer ``v`` clipped into the box, and their
+    parameters, paper's costs and PEM sums of squares (``[2]`` each), from one vmapped run: one copy of the simulator
+    in the compiled program."""
+    del v0
+    pair = jnp.stack([boxed.axes.base, boxed.axes.theta(Bounds.clip_unit(v))])
+    loss, cost, rss = jax.vmap(_scores, in_axes=(0, None))(pair, boxed)
+    return loss, (pair, cost, rss)
+
+
 @eqx.filter_jit(compiler_options=QUICK_COMPILE)
 def _solve(
     boxed: _Boxed, solver: optx.AbstractLeastSquaresSolver, max_steps: int
 ) -> tuple[Array, Array, Array, Array, Array, Array, optx.RESULTS]:
     """One least-squares solve of ``boxed``'s residuals; keeps the start (``base``) unless the solver beat it.
 
-    Returns ``theta, cost_start, cost, rss_start, rss, n_steps, result``. Start and answer are simulated together
-    in one vmapped run (one copy of the simulator in the compiled program).
+    Returns ``theta, cost_start, cost, rss_start, rss, n_steps, result``.
     """
-    sol = optx.least_squares(_residual, solver, boxed.v0(), args=boxed, max_steps=max_steps, throw=False)
-    pair = jnp.stack([boxed.base, boxed.theta(Bounds.clip_unit(sol.value))])
-    loss, cost, rss = jax.vmap(_scores, in_axes=(0, None))(pair, boxed)
-    pick = jnp.where(jnp.all(jnp.isfinite(pair[1])) & (loss[1] <= loss[0]), 1, 0)
-    return pair[pick], cost[0], cost[pick], rss[0], rss[pick], sol.stats["num_steps"], sol.result
-
-
-MARGIN = 0.2
-"""How far outside the unit box (in bound widths) an iterate may go; :meth:`~jaxheli.bounds.Bounds.penalty` pulls
-it back. Measured from a 100-generation IWO start on the default flight (3 output-error rounds of 30 steps): 0.2
-follows the unbounded penalty path (RSS 4,610 against 4,611), 0.05 stalls at 5,521 with parameters pinned at
-bounds the truth does not touch. Unbounded, 100-200 steps from a poor R-50 start wandered far outside."""
-
-
-def least_squares_solver(solver: Solver, rtol: float, atol: float, n_bounded: int) -> BoxedLeastSquares:
-    """The least-squares solver whose first ``n_bounded`` unknowns stay in ``[-MARGIN, 1 + MARGIN]``
-    (:class:`~jaxheli.optim.boxed_lm.BoxedLeastSquares`): Levenberg-Marquardt (``"lm"``) or Gauss-Newton
-    (``"gn"``). ``n_free`` is small, so ``J^T J`` (35 x 35) is cheap and its eigen decomposition copes with the
-    exactly unresolved directions (e.g. ``Nrfb``/``Kr``, which enter only as a product)."""
-    return BoxedLeastSquares(rtol, atol, n_bounded, solver, MARGIN)
+    sol = boxed_least_squares(_residual, solver, boxed.axes.start(), boxed, max_steps, _score)
+    pair, cost, rss = sol.aux
+    return sol.kept(*pair), cost[0], sol.kept(*cost), rss[0], sol.kept(*rss), sol.num_steps, sol.result
 
 
 _RESULT_NAMES = (
@@ -289,8 +266,8 @@ def fit(
     :func:`pem` and :func:`~jaxheli.optim.polish.polish`); over several records the residuals are concatenated,
     so the sums of squares (and the paper's costs reported) add."""
     base, mask = start_vector(start, problem.bounds), problem.bounds.free_mask(free)
-    boxed = _Boxed(problem, jnp.asarray(base), tuple(bool(m) for m in mask), objective)
-    raw = _solve(boxed, least_squares_solver(solver, rtol, atol, boxed.n_free), int(max_steps))
+    boxed = _Boxed(problem, FreeAxes(problem.bounds, base, mask), objective)
+    raw = _solve(boxed, least_squares_solver(solver, rtol, atol, int(mask.sum())), int(max_steps))
     settings = {"objective": objective, "solver": solver, "max_steps": int(max_steps), "rtol": rtol, "atol": atol,
                 "simulator": [part.sim.describe() for part in parts(problem)] if isinstance(problem, Records)
                 else problem.sim.describe()}
