@@ -132,8 +132,8 @@ def test_objective_and_gradient_match_the_summed_powers(flight, segment):
     def old(theta):
         return jnp.sum(pem_residuals(problem, _summed_powers_outputs(problem.sim, theta)) ** 2)
 
+    new_and_grad, old_and_grad = jax.jit(jax.value_and_grad(new)), jax.jit(jax.value_and_grad(old))
     for theta in thetas:
-        theta = jnp.asarray(theta)
-        (v_new, g_new), (v_old, g_old) = jax.value_and_grad(new)(theta), jax.value_and_grad(old)(theta)
+        (v_new, g_new), (v_old, g_old) = new_and_grad(jnp.asarray(theta)), old_and_grad(jnp.asarray(theta))
         np.testing.assert_allclose(v_new, v_old, rtol=1e-9)
         np.testing.assert_allclose(g_new, g_old, rtol=1e-9, atol=1e-9 * np.abs(g_old).max())
