@@ -16,14 +16,17 @@ marginalised.
 
 Layout (the simulator's restarts): run 0 covers samples ``0 .. L`` (``m = 0 .. L``), run ``j >= 1`` samples
 ``jL + 1 .. (j + 1) L`` (``m = 1 .. L``), the last one cut at the record's end; ``L`` is the segment length in
-samples (the whole record for one run). ``C Ad^m`` is built once for ``m = 0 .. L`` by a scan of 13 x 13
-products and shared by every run. Channels the simulator cannot restart from (unmeasured, or the authors'
+samples (the whole record for one run). Channels the simulator cannot restart from (unmeasured, or the authors'
 stick-multiple flapping columns) get no weight.
+
+Cost: about three simulations per ``theta``, every run advanced by one scan over the ``L`` steps: the runs from
+rest, one backward (adjoint) pass that sums each run's right-hand side ``sum_m (C Ad^m)' W e_j[m]``, and the runs
+from their fitted states. The Gram matrices ``sum_m (C Ad^m)' W C Ad^m`` (the same for all runs but the first and
+the last) come from ``log2 L`` doublings of 13 x 13 matrices, never from the powers at every sample.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 import jax
@@ -32,7 +35,7 @@ import numpy as np
 
 from .._types import Array, Float
 from ..model import build_ab, output_indices
-from .discretize import discretize
+from .discretize import Discrete, discretize
 
 Simulator = Any
 """A :class:`jaxheli.sim.simulate.Simulator` (which calls this module; not imported here, so no import cycle)."""
@@ -42,12 +45,17 @@ RIDGE = 1e-10
 see (e.g. the yaw-gyro state of a model without feedback) is set to zero instead of making the solve singular."""
 
 
+def run_shape(n_samples: int, segment_samples: int) -> tuple[int, int]:
+    """``(K, L)``: the number of runs of a record of ``n_samples`` restarted every ``segment_samples`` (0: one run
+    over the record) and their length in steps (the last run may be shorter)."""
+    L = max(segment_samples if segment_samples > 0 else n_samples - 1, 1)
+    return max(1, -(-(n_samples - 1) // L)), L
+
+
 def run_layout(n_samples: int, segment_samples: int) -> tuple[np.ndarray, np.ndarray]:
     """``(sample, valid)``, each ``[K, L + 1]``: the sample index of step ``m`` of run ``j`` and whether it belongs
     to that run (see the module); ``segment_samples`` 0 means one run over the record."""
-    L = segment_samples if segment_samples > 0 else n_samples - 1
-    L = max(L, 1)
-    K = max(1, -(-(n_samples - 1) // L))
+    K, L = run_shape(n_samples, segment_samples)
     j, m = np.meshgrid(np.arange(K), np.arange(L + 1), indexing="ij")
     sample = j * L + m
     valid = ((m >= 1) | (j == 0)) & (sample <= n_samples - 1)
@@ -56,7 +64,7 @@ def run_layout(n_samples: int, segment_samples: int) -> tuple[np.ndarray, np.nda
 
 def run_count(n_samples: int, segment_samples: int) -> int:
     """Runs of a record of ``n_samples`` restarted every ``segment_samples`` (0: one run)."""
-    return int(run_layout(n_samples, segment_samples)[1].shape[0])
+    return run_shape(n_samples, segment_samples)[0]
 
 
 def run_states(sim: Simulator, theta: Float[Array, "40"]) -> Float[Array, "K 13"]:
@@ -67,39 +75,77 @@ def run_states(sim: Simulator, theta: Float[Array, "40"]) -> Float[Array, "K 13"
 
 def estimated_outputs(sim: Simulator, theta: Float[Array, "40"]) -> Float[Array, "N k"]:
     """``sim``'s outputs for one ``theta[40]``, every run started from its least-squares initial state."""
-    forced, x0, powers = _project(sim, theta)
-    n, k = forced.shape
-    sample, _ = run_layout(n, sim.segment_samples)
-    free = jnp.einsum("mkx,jx->jmk", powers, x0)  # [K, L + 1, k]
-    flat = jnp.zeros((n + 1, k), forced.dtype).at[sample.ravel()].add(free.reshape(-1, k))
-    return forced + flat[:n]
+    return _simulate_runs(sim, *_project(sim, theta))
 
 
-def _project(sim: Simulator, theta: Float[Array, "40"]) -> tuple[Array, Array, Array]:
-    """The response from rest ``[N, k]``, each run's least-squares initial state ``[K, 13]`` and ``C Ad^m``
-    ``[L + 1, k, 13]``."""
+def _project(sim: Simulator, theta: Float[Array, "40"]) -> tuple[Discrete, Float[Array, "K 13"]]:
+    """The discrete model and each run's least-squares initial state: the runs from rest, the right-hand sides
+    by one backward (adjoint) pass over their weighted errors, the Gram matrices by :func:`_power_sums`."""
     idx = output_indices(sim.outputs)
     measured = sim.measured_states[:, idx]
     std = jnp.std(measured, axis=0)
     used = jnp.asarray(np.asarray(sim.measured_mask)[idx]) & (std > 0)
     weight = jnp.where(used, 1.0 / jnp.where(std > 0, std, 1.0) ** 2, 0.0)
 
-    zeros = jnp.zeros_like(sim.measured_states)
-    from_rest = dataclasses.replace(sim, measured_states=zeros, x0=zeros[0], initial="given", reset="zero")
-    forced = from_rest._one(theta)  # every run from rest
     d = discretize(*build_ab(theta, sim.g), sim.dt, sim.hold)
-    eye = jnp.eye(d.Ad.shape[0], dtype=d.Ad.dtype)
-    sample, valid = run_layout(measured.shape[0], sim.segment_samples)
+    n, n_x = measured.shape[0], d.Ad.shape[0]
+    K, L = run_shape(n, sim.segment_samples)
+    forced = _simulate_runs(sim, d, jnp.zeros((K, n_x), d.Ad.dtype))
+    C = jnp.eye(n_x, dtype=d.Ad.dtype)[idx]  # [k, 13]
+    weighted = ((measured - forced) * weight[None, :]) @ C  # C' W e at every sample, [N, 13]
 
-    def power(M, _):
-        return d.Ad @ M, M[idx]  # C Ad^m
+    def adjoint(lam, c):
+        return (lam + c) @ d.Ad, None  # lam_m = Ad' (lam_{m+1} + c_m); lam_1 = sum_m (Ad^m)' c_m
 
-    _, powers = jax.lax.scan(power, eye, None, length=sample.shape[1])  # [L + 1, k, 13]
-    padded = jnp.concatenate([measured - forced, jnp.zeros((1, idx.size), forced.dtype)])
-    error = padded[sample]  # [K, L + 1, k]; zero where a step is not in the run
-    weighted = powers * weight[None, :, None]
-    gram = jnp.einsum("jm,mkx,mky->jxy", jnp.asarray(valid, forced.dtype), weighted, powers)  # [K, 13, 13]
-    rhs = jnp.einsum("jmk,mkx->jx", error, weighted)
-    scale = RIDGE * jnp.trace(gram, axis1=-2, axis2=-1) / eye.shape[0] + jnp.finfo(gram.dtype).tiny
+    lam, _ = jax.lax.scan(adjoint, jnp.zeros((K, n_x), d.Ad.dtype), _by_step(weighted[1:], K, L), reverse=True)
+    rhs = lam.at[0].add(weighted[0])  # run 0 also holds step 0
+    Q = C.T @ (weight[:, None] * C)
+    full, last = _power_sums(d.Ad, Q, (L, n - 1 - (K - 1) * L))
+    gram = jnp.broadcast_to(d.Ad.T @ full @ d.Ad, (K, n_x, n_x)).at[-1].set(d.Ad.T @ last @ d.Ad).at[0].add(Q)
+    eye = jnp.eye(n_x, dtype=gram.dtype)
+    scale = RIDGE * jnp.trace(gram, axis1=-2, axis2=-1) / n_x + jnp.finfo(gram.dtype).tiny
     x0 = jnp.linalg.solve(gram + scale[:, None, None] * eye[None], rhs[..., None])[..., 0]
-    return forced, x0, powers
+    return d, x0
+
+
+def _simulate_runs(sim: Simulator, d: Discrete, x0: Float[Array, "K 13"]) -> Float[Array, "N k"]:
+    """``sim``'s outputs with run ``j`` started from ``x0[j]``: one scan over the steps of all runs at once."""
+    n = sim.inputs.shape[0]
+    K, L = run_shape(n, sim.segment_samples)
+    idx = output_indices(sim.outputs)
+    u = jnp.pad(sim.inputs.astype(d.Ad.dtype), ((0, K * L + 1 - n), (0, 0)))
+
+    def step(x, inputs):
+        u0, u1 = inputs
+        x = x @ d.Ad.T + u0 @ d.B0.T + u1 @ d.B1.T
+        return x, x[:, idx]
+
+    _, y = jax.lax.scan(step, x0, (_by_step(u[:-1], K, L), _by_step(u[1:], K, L)))  # [L, K, k]
+    return jnp.concatenate([x0[:1, idx], jnp.swapaxes(y, 0, 1).reshape(K * L, -1)[: n - 1]])
+
+
+def _by_step(a: Float[Array, "M c"], K: int, L: int) -> Float[Array, "L K c"]:
+    """Rows of a record, zero-padded, as the ``L`` scan steps of each of ``K`` runs: row ``i`` is step ``i % L`` of
+    run ``i // L``."""
+    return jnp.swapaxes(jnp.pad(a, ((0, K * L - a.shape[0]), (0, 0))).reshape(K, L, -1), 0, 1)
+
+
+def _power_sums(
+    Ad: Float[Array, "13 13"], Q: Float[Array, "13 13"], lengths: tuple[int, ...]
+) -> Float[Array, "R 13 13"]:
+    """``S(n) = sum_{m < n} (Ad^m)' Q Ad^m`` for each ``n`` of ``lengths`` (positive), by doubling
+    (``S(2a) = S(a) + (Ad^a)' S(a) Ad^a``) and one scan over the binary digits of ``n``
+    (``S(a + b) = S(a) + (Ad^a)' S(b) Ad^a``), lowest first; no power above ``Ad^n`` is formed."""
+    bits = np.array([[(n >> i) & 1 for n in lengths] for i in range(max(lengths).bit_length())], bool)  # [B, R]
+    first = jnp.asarray(bits[0])[:, None, None]
+    acc = (jnp.where(first, Q[None], 0.0), jnp.where(first, Ad[None], jnp.eye(Ad.shape[0], dtype=Ad.dtype)[None]))  # S(a), Ad^a
+
+    def digit(carry, bit):
+        (S, P), (S_acc, P_acc) = carry
+        S, P = S + P.T @ S @ P, P @ P  # S(2^i), Ad^(2^i)
+        grown = (S_acc + jnp.swapaxes(P_acc, -1, -2) @ S[None] @ P_acc, P_acc @ P[None])
+        acc = tuple(jnp.where(bit[:, None, None], new, old) for new, old in zip(grown, (S_acc, P_acc)))
+        return ((S, P), acc), None
+
+    (_, (sums, _)), _ = jax.lax.scan(digit, ((Q, Ad), acc), jnp.asarray(bits[1:]))
+    return sums
