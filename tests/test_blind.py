@@ -158,6 +158,23 @@ def test_no_fit_starts_at_an_injected_value():
             assert not np.any(moved & (starts == injected)), (kind, seed)
 
 
+def test_a_trial_without_a_constant_channel_keeps_every_other_effect_value():
+    """A channel constant on a trial's flight (quantised coarser than it moves) is left out as a user would; the
+    injection keeps each parameter that still exists, and loses its primary when that was the channel's own."""
+    from jaxheli.benchmark.blind import _restrict
+
+    inj = sample_injection("output_bias_drift", 3)
+    names = {p.name: p.slot for p in fx.params(inj.kind, DEFAULT_OUTPUTS)}
+    fewer = tuple(c for c in DEFAULT_OUTPUTS if c != "w")
+    cut = _restrict(inj, fewer)
+    for p in fx.params(inj.kind, fewer):
+        assert cut.eta[p.slot] == inj.eta[names[p.name]]
+    assert len(cut.eta) == len(augmented.no_effect(fewer))
+    assert (cut.primary, cut.value) == ((inj.primary, inj.value) if inj.primary in {p.name for p in
+                                         fx.params(inj.kind, fewer)} else (None, 0.0))
+    assert _restrict(sample_injection("none", 3), fewer).primary is None
+
+
 def test_an_unknown_base_method_is_named():
     with pytest.raises(ValueError, match="unknown base method 'oracle'"):
         base_model(blind_flights(sample_injection("none", 0), 0, scenario(0), duration=12.0)[0], "oracle", 0)

@@ -36,7 +36,7 @@ from tqdm.auto import tqdm
 
 from .._affinity import cores, on_core
 from ..bounds import Bounds
-from ..data.flight import FlightData
+from ..data.flight import FlightData, constant_outputs
 from ..effects import registry as fx
 from ..effects.catalogue import EFFECTS
 from ..effects.plant import no_effect
@@ -247,9 +247,13 @@ def run_trial(
     fit's (``estimate_train``, ``magnitude_error_train``) and the oracle's (``oracle_estimate``,
     ``oracle_magnitude_error``)."""
     where = scenario(seed)
-    outputs = DEFAULT_OUTPUTS
     inj, train, validate, right, facts = trial_flights(truth, kind, seed, where, duration=duration, dt=dt,
-                                                       outputs=outputs)
+                                                       outputs=DEFAULT_OUTPUTS)
+    flat = set(constant_outputs(train)) | set(constant_outputs(validate))
+    outputs = tuple(c for c in DEFAULT_OUTPUTS if c not in flat)
+    if flat:
+        inj, train, validate = _restrict(inj, outputs), train.select(outputs), validate.select(outputs)
+        facts = {**facts, "dropped_outputs": sorted(flat)}
     theta, ident = base_model(train, base, seed, pem_steps=pem_steps, iterations=iterations, outputs=outputs)
     train_pred, validate_pred = predictor_pair(theta, train, validate, segment=segment)
     *arrays, owner = fx.tried_arrays(fx.ALL, outputs)
@@ -295,6 +299,20 @@ def run_trial(
 def _untheta(result: Entry | Refit | Final) -> dict[str, Any]:
     """``result``'s JSON without its base parameters (a trial's record keeps the sizes, not 40 numbers each)."""
     return {k: v for k, v in result.to_json().items() if k != "theta"}
+
+
+def _restrict(inj: Injection, outputs: tuple[str, ...]) -> Injection:
+    """``inj`` on the channels ``outputs`` alone, as a user diagnoses a flight whose constant channels (a sensor
+    quantised coarser than its channel moves) are left out: each effect parameter that still exists keeps its
+    value."""
+    eta = np.asarray(no_effect(outputs), np.float64).copy()
+    kept = fx.params(inj.kind, outputs) if inj.kind != "none" else ()
+    full = {p.name: p.slot for p in fx.params(inj.kind, DEFAULT_OUTPUTS)} if kept else {}
+    for p in kept:
+        eta[p.slot] = inj.eta[full[p.name]]
+    if inj.primary in {p.name for p in kept}:
+        return dataclasses.replace(inj, eta=eta)
+    return dataclasses.replace(inj, eta=eta, primary=None, value=0.0)
 
 
 def _relative_error(value: float, true: float) -> float:
