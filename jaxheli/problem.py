@@ -29,7 +29,7 @@ from .data.flight import FlightData, FlightDataError, constant_outputs, default_
 from .model import G_SI, LOWER, UPPER
 from .sim.discretize import Hold
 from .sim.population import PopulationCost
-from .sim.simulate import InitialState, Method, Simulator, make_simulator
+from .sim.simulate import InitialState, SimMethod, Simulator, make_simulator
 
 Precision = Literal["float32", "float64"]
 
@@ -60,7 +60,7 @@ class Settings:
     cost: SearchCost = "pearson"
     lower: tuple[float, ...] = tuple(LOWER.tolist())
     upper: tuple[float, ...] = tuple(UPPER.tolist())
-    simulator: Method = "auto"
+    simulator: SimMethod = "auto"
 
     def __post_init__(self) -> None:
         if self.outputs is not None:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from jaxheli.effects import registry as effects
-from jaxheli.gap.fit_effect import Fit
+from jaxheli.gap.fit_effect import EffectFit
 from jaxheli.gap.records import Attribution, Diagnosis, Entry, Final, FlightSummary, Gap, Refit
 from jaxheli.gap.significance import HeldOut, shrink_entries
 from jaxheli.model import TABLE2
@@ -22,7 +22,7 @@ def _entries() -> list[Entry]:
     k = 2 * len(OUT) + 1
     z = np.zeros((3, k))
     z[1, :4], z[2, :4], z[:, -1] = [0.08, 0.0, 0.01, 0.0], [0.05, 0.02, 0.0, 0.0], [0.0, -0.3, 0.2]
-    fit = Fit(z=z, stderr=np.full((3, k), 0.005), theta=np.tile(TABLE2, (3, 1)) * [[1.0], [1.01], [0.99]],
+    fit = EffectFit(z=z, stderr=np.full((3, k), 0.005), theta=np.tile(TABLE2, (3, 1)) * [[1.0], [1.01], [0.99]],
               rss=np.array([1.0, 0.6, 0.7]), n_eff=np.full(3, 100.0), k_active=np.array([1, 5, 5]),
               steps=np.array([4, 5, 6]), converged=np.array([True, True, False]))
     segs = np.random.default_rng(0).uniform(1.0, 2.0, (3, 8)) * np.array([[1.0], [0.6], [0.7]])

@@ -13,7 +13,7 @@ from jaxheli.effects import plant as augmented, registry as effects
 from jaxheli.gap.kalman import gust_filter, riccati
 from jaxheli.cost import nmse
 from jaxheli.gap.predictor import TRACKS, make_predictor, noise_variance, tune_track
-from jaxheli.gap.fit_effect import Fit
+from jaxheli.gap.fit_effect import EffectFit
 from jaxheli.gap.ranking import predictor_pair, rank_effects, verdict
 from jaxheli.gap.significance import SIG_SIGMA, TIE_SIGMA, HeldOut, lr_test, shrink_entries, yardstick
 from jaxheli.model import TABLE2
@@ -196,10 +196,10 @@ def test_rank_effects_finds_an_injected_lon_delay():
 
 
 def _fit(z, stderr, rss=None):
-    """A :class:`Fit` of candidates ``z[C, K]`` behind a reference row (no effect, RSS 1)."""
+    """An :class:`EffectFit` of candidates ``z[C, K]`` behind a reference row (no effect, RSS 1)."""
     c, k = z.shape
     rss = np.ones(c) if rss is None else np.asarray(rss)
-    return Fit(z=np.vstack([np.zeros((1, k)), z]), stderr=np.vstack([np.zeros((1, k)), stderr]),
+    return EffectFit(z=np.vstack([np.zeros((1, k)), z]), stderr=np.vstack([np.zeros((1, k)), stderr]),
                theta=np.tile(TABLE2, (c + 1, 1)), rss=np.concatenate([[1.0], rss]), n_eff=np.full(c + 1, 100.0),
                k_active=np.concatenate([[0], np.full(c, 1)]), steps=np.ones(c + 1, int),
                converged=np.ones(c + 1, bool))

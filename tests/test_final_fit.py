@@ -9,7 +9,7 @@ from jaxheli.gap.final_fit import Stacked, final_fit
 from jaxheli.gap.ranking import predictor_pair
 from jaxheli.gap.reference import theta_box
 from jaxheli.gap.significance import HeldOut, shrink_entries
-from jaxheli.gap.fit_effect import Fit
+from jaxheli.gap.fit_effect import EffectFit
 from jaxheli.model import PARAM_NAMES, TABLE2
 from jaxheli.synth.excitation import Excitation
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS, piloted_flight
@@ -58,7 +58,7 @@ def _entry(theta):
     k = len(effects.params("quadratic_drag", OUT))
     z = np.zeros((2, k))
     z[1, [p.name for p in effects.params("quadratic_drag", OUT)].index("Xuu")] = XUU / 2
-    fit = Fit(z=z, stderr=np.full((2, k), 0.1), theta=np.stack([theta, theta]), rss=np.ones(2), n_eff=np.ones(2),
+    fit = EffectFit(z=z, stderr=np.full((2, k), 0.1), theta=np.stack([theta, theta]), rss=np.ones(2), n_eff=np.ones(2),
               k_active=np.zeros(2, int), steps=np.ones(2, int), converged=np.ones(2, bool))
     (entry,) = shrink_entries(["quadratic_drag"], OUT, fit, HeldOut(np.ones((2, len(OUT))), np.ones((2, 4))), 10.0)
     return entry

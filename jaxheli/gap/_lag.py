@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 from jaxtyping import Float
 
-from ._regress import Fit, hac_lstsq, well_posed
+from ._regress import RegressionFit, hac_lstsq, well_posed
 
 
 @dataclasses.dataclass(frozen=True)
@@ -27,7 +27,7 @@ class LagFit:
 
     tau: float
     sigma: float
-    fit: Fit
+    fit: RegressionFit
     converged: bool
 
 

@@ -14,7 +14,7 @@ from jaxtyping import Float
 
 
 @dataclasses.dataclass(frozen=True)
-class Fit:
+class RegressionFit:
     """A linear fit ``y ~ X beta``: coefficients, their 1-sigma covariance, residual and kernel bandwidth."""
 
     beta: Float[np.ndarray, "m"]
@@ -39,7 +39,7 @@ def well_posed(X: Float[np.ndarray, "N m"], rcond: float = 1e-8) -> bool:
     return bool(s[-1] > rcond * s[0])
 
 
-def hac_lstsq(y: Float[np.ndarray, "N"], X: Float[np.ndarray, "N m"], min_bandwidth: int = 1) -> Fit:
+def hac_lstsq(y: Float[np.ndarray, "N"], X: Float[np.ndarray, "N m"], min_bandwidth: int = 1) -> RegressionFit:
     """Ordinary least squares with the Newey-West covariance.
 
     The Bartlett bandwidth is twice the lag at which the residual autocorrelation first falls below 0.1,
@@ -52,7 +52,7 @@ def hac_lstsq(y: Float[np.ndarray, "N"], X: Float[np.ndarray, "N m"], min_bandwi
     meat = _bartlett_meat(X * e[:, None], bandwidth)
     bread = np.linalg.inv(X.T @ X)
     cov = bread @ meat @ bread
-    return Fit(beta=beta, cov=0.5 * (cov + cov.T), residual=e, bandwidth=bandwidth)
+    return RegressionFit(beta=beta, cov=0.5 * (cov + cov.T), residual=e, bandwidth=bandwidth)
 
 
 def _bartlett_meat(score: Float[np.ndarray, "N m"], bandwidth: int) -> Float[np.ndarray, "m m"]:

@@ -74,7 +74,7 @@ def fitted_nuisance(value: np.ndarray, outputs: tuple[str, ...], exclude: Collec
     return {p.name: float(v) for p, v in zip(ps, tail) if p.name not in exclude}
 
 
-class Candidates(eqx.Module):
+class EffectRows(eqx.Module):
     """The candidates of one batched fit: ``eta`` slots ``index[C, K]``, start values and box (padding: the
     dummy slot, pinned at 0). Row 0 is the reference when built by :func:`with_reference`."""
 
@@ -84,8 +84,8 @@ class Candidates(eqx.Module):
     upper: Float[Array, "C K"]
 
 
-def with_reference(index, start, lower, upper, pad: int, shared=None) -> Candidates:
-    """:class:`Candidates` from :func:`~jaxheli.effects.registry.candidate_arrays`' arrays, with a first row
+def with_reference(index, start, lower, upper, pad: int, shared=None) -> EffectRows:
+    """:class:`EffectRows` from :func:`~jaxheli.effects.registry.candidate_arrays`' arrays, with a first row
     that frees no effect (every slot the dummy ``pad``): the base model fitted alone, the yardstick every
     candidate is credited against. ``shared`` (``(slot[S], start[S], lower[S], upper[S])``,
     :func:`~jaxheli.effects.registry.nuisance_arrays`) adds slots every row frees, the reference's included,
@@ -99,10 +99,10 @@ def with_reference(index, start, lower, upper, pad: int, shared=None) -> Candida
         extra = [np.where(held, fill, np.broadcast_to(np.asarray(a), held.shape))
                  for a, fill in zip(shared, (pad, 0.0, 0.0, 0.0))]
         rows = [np.concatenate([a, e.astype(a.dtype)], axis=1) for a, e in zip(rows, extra)]
-    return Candidates(*(jnp.asarray(a) for a in rows))
+    return EffectRows(*(jnp.asarray(a) for a in rows))
 
 
-class Fit(eqx.Module):
+class EffectFit(eqx.Module):
     """Fitted candidates: effect values ``z[C, K]`` and standard errors, base parameters ``theta[C, 40]``
     (the given ones when frozen), training RSS, effective residual count, number of effect parameters the
     fit resolved, solver steps, converged flags."""
@@ -122,10 +122,10 @@ def fit_candidates(
     pred: Predictor,
     theta: Float[Array, "40"],
     base: Float[Array, "E"],
-    cand: Candidates,
+    cand: EffectRows,
     max_steps: int = 40,
     theta_box: Bounds | None = None,
-) -> Fit:
+) -> EffectFit:
     """Fit every candidate on ``pred``'s flight (LM mapped over the candidates; ``max_steps`` is static); with
     ``theta_box`` the base parameters are re-identified jointly in that box (it must contain ``theta``), else held
     at ``theta``."""
@@ -159,7 +159,7 @@ def fit_candidates(
         k = z0.shape[0]
         return z, stderr[-k:], th, rss, res.shape[0] / colour, jnp.sum(active[-k:]), sol.num_steps, sol.successful
 
-    return Fit(*jax.lax.map(lambda row: one(*row), (cand.index, cand.start, cand.lower, cand.upper)))
+    return EffectFit(*jax.lax.map(lambda row: one(*row), (cand.index, cand.start, cand.lower, cand.upper)))
 
 
 def _colour_factor(res: Float[Array, "N k"]) -> Float[Array, ""]:

@@ -33,7 +33,7 @@ from ..model import G_SI
 from ..effects import registry as fx
 from ..effects.plant import no_effect
 from .final_fit import final_fit
-from .fit_effect import Candidates, embed, fit_candidates, score, with_reference
+from .fit_effect import EffectRows, embed, fit_candidates, score, with_reference
 from .predictor import Predictor, make_predictor, tune_track
 from .records import Attribution, Entry, Refit
 from .reference import (
@@ -44,7 +44,7 @@ from .significance import MIN_SHRINK, HeldOut, shrink_entries, yardstick
 
 
 def fit_and_score(
-    train: Predictor, validate: Predictor, theta: Float[ArrayLike, "40"], cand: Candidates, max_steps: int,
+    train: Predictor, validate: Predictor, theta: Float[ArrayLike, "40"], cand: EffectRows, max_steps: int,
     box: Bounds | None, owner: np.ndarray | None = None, challenge: int = 0,
 ) -> Scored:
     """Fit the rows of ``cand`` (row 0 the reference, :func:`~jaxheli.gap.fit_effect.with_reference`) on

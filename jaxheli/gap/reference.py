@@ -20,7 +20,7 @@ import numpy as np
 from .._types import Array, ArrayLike, Float
 from ..bounds import Bounds
 from ..effects.plant import no_effect
-from .fit_effect import Candidates, Fit, embed, fit_candidates, fitted_nuisance, score
+from .fit_effect import EffectRows, EffectFit, embed, fit_candidates, fitted_nuisance, score
 from .predictor import Predictor
 from .records import Entry, Refit
 from .thresholds import THRESHOLDS
@@ -56,7 +56,7 @@ class Scored(NamedTuple):
     base model; ``rss_start`` is the reference's training RSS where the candidates started (``None``: frozen base).
     """
 
-    fit: Fit
+    fit: EffectFit
     given: HeldOut
     rows: HeldOut
     rss_start: float | None
@@ -70,7 +70,7 @@ def theta_box(theta: Float[ArrayLike, "40"], bounds: Bounds | None = None) -> Bo
     return Bounds(np.minimum(np.asarray(bounds.lower), theta), np.maximum(np.asarray(bounds.upper), theta))
 
 
-def refit_alone(train: Predictor, theta: Float[Array, "40"], reference: Candidates, steps: int, box: Bounds) -> Fit:
+def refit_alone(train: Predictor, theta: Float[Array, "40"], reference: EffectRows, steps: int, box: Bounds) -> EffectFit:
     """The base model fitted alone (``reference``: one row) from ``theta`` in up to :data:`REFERENCE_ROUNDS`
     rounds of ``steps`` LM steps, each from the last; it stops once a round lowers the training RSS by less
     than :data:`SETTLED_PCT` or the solver converges."""
@@ -86,7 +86,7 @@ def refit_alone(train: Predictor, theta: Float[Array, "40"], reference: Candidat
     return fit
 
 
-def carry_reference(cand: Candidates, z: Float[ArrayLike, "K"], row: int = 0) -> Candidates:
+def carry_reference(cand: EffectRows, z: Float[ArrayLike, "K"], row: int = 0) -> EffectRows:
     """``cand`` with every row started where row ``row`` (the reference by default) ended in the slots it
     frees (``z``: its fitted values; e.g. nuisance parameters such as the restart filter's level)."""
     start = cand.start
@@ -96,7 +96,7 @@ def carry_reference(cand: Candidates, z: Float[ArrayLike, "K"], row: int = 0) ->
 
 
 def challenge(
-    train: Predictor, validate: Predictor, cand: Candidates, scored: Scored, steps: int, box: Bounds, count: int,
+    train: Predictor, validate: Predictor, cand: EffectRows, scored: Scored, steps: int, box: Bounds, count: int,
 ) -> Scored:
     """The reference challenged by the candidates it would credit: the base model re-fitted alone (``steps`` LM
     steps) from the base parameters (and nuisance values) of each of the up to :data:`CHALLENGERS` of the first

@@ -26,7 +26,7 @@ import scipy.stats
 
 from .._types import Float
 from ..effects import registry as fx
-from .fit_effect import Fit, fitted_nuisance
+from .fit_effect import EffectFit, fitted_nuisance
 from .thresholds import THRESHOLDS
 from .records import Entry, LRTest
 
@@ -93,7 +93,7 @@ def lr_test(rss_ref: float, rss: float, n_eff: float, dof: int) -> LRTest:
 
 
 def shrink_entries(
-    names: list[str], outputs: tuple[str, ...], fit: Fit, held: HeldOut, min_shrink: float, shared: bool = False,
+    names: list[str], outputs: tuple[str, ...], fit: EffectFit, held: HeldOut, min_shrink: float, shared: bool = False,
 ) -> list[Entry]:
     """Ranking entries of the candidates ``names``, best first (``theta``: the base parameters fitted with the
     effect; ``nuisance``: the nuisance values fitted with it, by name, when ``shared``: the fits freed them in their

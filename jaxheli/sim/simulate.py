@@ -32,7 +32,7 @@ from ..model import FLAPPING, G_SI, MEASURABLE, N_STATES, build_ab, output_indic
 
 InitialState = Literal["zero", "measured", "estimated"]
 Reset = Literal["carry", "zero"]
-Method = Literal["auto", "scan", "blocked"]
+SimMethod = Literal["auto", "scan", "blocked"]
 
 
 class Simulator(eqx.Module):
@@ -144,7 +144,7 @@ class Simulator(eqx.Module):
         x0: InitialState | Float[np.ndarray, "13"] = "zero",
         segment: float | None = None,
         reset: Reset = "carry",
-        method: Method = "auto",
+        method: SimMethod = "auto",
         block: int | None = None,
     ) -> Simulator:
         """The same flight under other settings (those of :func:`make_simulator`; ``outputs`` are state names)."""

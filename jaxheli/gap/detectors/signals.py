@@ -6,7 +6,7 @@ import numpy as np
 import scipy.signal
 
 from ...data.flight import FlightData
-from .._regress import Fit
+from .._regress import RegressionFit
 
 VELOCITY_CUTOFF_HZ = 2.0
 """Low-pass before the velocity regression (GPS velocities are smooth; the flapping model is quasi-steady)."""
@@ -43,7 +43,7 @@ def interior(t: np.ndarray, edge: float) -> np.ndarray:
     return (t > t[0] + edge) & (t < t[-1] - edge)
 
 
-def ratio(fit: Fit, i: int, sign: float, j: int = 0) -> tuple[float, float]:
+def ratio(fit: RegressionFit, i: int, sign: float, j: int = 0) -> tuple[float, float]:
     """``sign beta_i / beta_j`` and its delta-method 1-sigma."""
     bi, bj = fit.beta[i], fit.beta[j]
     grad = np.zeros_like(fit.beta)

@@ -19,14 +19,14 @@ from jaxtyping import Float
 from ...data.flight import FlightData
 from ...model import G_SI, INPUT_NAMES
 from .._finding import N_SIGMA, Finding, beyond, skip
-from .._regress import Fit, hac_lstsq, well_posed
+from .._regress import RegressionFit, hac_lstsq, well_posed
 from .signals import EDGE_S, VELOCITY_CUTOFF_HZ, interior, lowpass, ratio, signals
 
 _VELOCITIES = (("u", "theta", -1.0), ("v", "phi", 1.0))
 """Velocity, its attitude partner and the sign of ``g`` in ``velocity' = sign g angle``."""
 
 
-def _velocity_fits(flight: FlightData) -> tuple[list[tuple[str, str, float]], list[Fit], list[Finding]]:
+def _velocity_fits(flight: FlightData) -> tuple[list[tuple[str, str, float]], list[RegressionFit], list[Finding]]:
     """Regress each velocity derivative on attitude, velocities, rates, centred sticks, 1 and time."""
     names = flight.output_names
     pairs, skipped = [], []
