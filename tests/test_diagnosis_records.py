@@ -1,5 +1,5 @@
-"""The diagnosis's typed results through JSON and back: an entry, the base re-fit, the final fit, the whole
-diagnosis (``from_json(to_json(x))`` equal to ``x``, arrays compared with numpy)."""
+"""The diagnosis's typed results through JSON and back: an entry, the base re-fit, the final fit, the localisation,
+the whole diagnosis (``from_json(to_json(x))`` equal to ``x``, arrays compared with numpy)."""
 
 import dataclasses
 import json
@@ -7,8 +7,11 @@ import json
 import numpy as np
 import pytest
 
+from jaxheli.data.flight import FlightData
 from jaxheli.effects import registry as effects
 from jaxheli.gap.fit_effect import EffectFit
+from jaxheli.gap.localisation_record import Localisation
+from jaxheli.gap.localise import localise
 from jaxheli.gap.records import Attribution, Diagnosis, Entry, Final, FlightSummary, Gap, Refit
 from jaxheli.gap.significance import HeldOut, shrink_entries
 from jaxheli.model import TABLE2
@@ -30,6 +33,20 @@ def _entries() -> list[Entry]:
     return shrink_entries(["input_delay", "actuator_lag"], OUT, fit, HeldOut(gaps, segs), 3.0, shared=True)
 
 
+def _localisation(seed: int) -> Localisation:
+    """A localisation of noise against noise (sticks held constant: none of the few Welch bins of the top band)
+    with a frequency response holding an undefined (``None``) entry, as :func:`localise_prediction` gives it."""
+    rng = np.random.default_rng(seed)
+    n, dt = 400, 0.05
+    inputs = np.cumsum(rng.normal(size=(n, 4)), axis=0)
+    inputs[:, 3] = 0.0
+    measured = rng.normal(size=(n, 2))
+    flight = FlightData(dt * np.arange(n), inputs, measured, ("p", "q"), source=f"flight{seed}")
+    found = localise(flight, measured - rng.normal(size=(n, 2)), bands=(0.0, 1.0, 9.99, None))
+    return dataclasses.replace(found, frequency_response={"lat->p": {"bins": 3.0, "magnitude_db": None}},
+                               simulation={"g": 9.81, "hold": "zoh"})
+
+
 def _diagnosis() -> Diagnosis:
     best, lag = _entries()
     combination = dataclasses.replace(best, effect="input_delay+actuator_lag", shrink_se_pct=float("inf"))
@@ -42,9 +59,9 @@ def _diagnosis() -> Diagnosis:
     flights = {role: FlightSummary(f"{role}.npz", 401, 0.05, ({"step": "trim", "samples": 2},))
                for role in ("train", "validate")}
     gap = Gap(dict.fromkeys(OUT, 0.2), 0.2)
-    return Diagnosis("table2", flights, OUT, 2.0, ({"kind": "time_scale", "flight": "train"},),
-                     {"summary": {"worst_channel": "q"}, "channel": {"q": {"nmse": 0.3}}}, attribution, gap,
-                     dataclasses.replace(gap, total=0.1), dataclasses.replace(gap, total=float("nan")))
+    return Diagnosis("table2", flights, OUT, 2.0, ({"kind": "time_scale", "flight": "train"},), _localisation(1),
+                     attribution, gap, dataclasses.replace(gap, total=0.1), dataclasses.replace(gap, total=float("nan")),
+                     _localisation(2))
 
 
 def _assert_entry_equal(a: Entry | Final, b: Entry | Final) -> None:
@@ -83,8 +100,12 @@ def test_a_diagnosis_comes_back_from_strict_json():
     for field in ("shrink_pct", "gap_by_channel", "under_fitted", "settled", "steps", "nuisance"):
         assert getattr(b.base_refit, field) == getattr(a.base_refit, field), field
     np.testing.assert_array_equal(b.base_refit.theta, a.base_refit.theta)
-    assert (b.verdict, b.track, back.outputs, back.flights, back.consistency, back.localisation) == (
-        a.verdict, a.track, d.outputs, d.flights, d.consistency, d.localisation)
+    assert (b.verdict, b.track, back.outputs, back.flights, back.consistency) == (
+        a.verdict, a.track, d.outputs, d.flights, d.consistency)
+    assert (back.localisation, back.localisation_train) == (d.localisation, d.localisation_train)
+    assert content["localisation"]["train"] == d.localisation_train.to_json()
+    assert content["localisation"]["frequency_response"]["lat->p"]["magnitude_db"] is None
+    assert back.localisation.band[-1].coherence["p"] is None  # no Welch bin above 9.99 Hz
     assert (back.gap_before, back.gap_best) == (d.gap_before, d.gap_best) and np.isnan(back.gap_combination.total)
 
 
@@ -97,6 +118,9 @@ def test_a_frozen_base_writes_no_refit_and_reads_none():
     assert content["gap_after"]["combination"] is None
     back = Diagnosis.from_json(content).attribution
     assert back.base_refit is None and back.final is None and back.combination is None
+    untrained = dataclasses.replace(d, localisation_train=None)
+    assert "train" not in untrained.to_json()["localisation"]
+    assert Diagnosis.from_json(untrained.to_json()).localisation_train is None
 
 
 def test_a_fitted_parameter_keeps_its_interval():

@@ -11,6 +11,7 @@ import scipy.signal as ss
 import jaxheli
 from jaxheli.cost import nmse
 from jaxheli.spectra import estimate_frequency_response, model_frequency_response
+from jaxheli.gap.localisation_record import Localisation
 from jaxheli.gap.localise import localise
 from jaxheli.cli.gap import add_localise_parser as add_parser
 
@@ -106,13 +107,17 @@ def test_delayed_input_effect_peaks_at_its_lag_on_that_input():
     residual = np.stack([effect / effect.std() + 0.3 * _noise(6, N), 0.5 * _noise(7, N)], axis=1)
     measured = _noise(8, (N, 2))
     loc = localise(_flight(u, measured), measured - residual)
-    pair = loc["lag"]["pairs"]["lon->p"]
-    assert pair["significant"]
-    assert abs(pair["peak_lag_s"] - delay) <= DT / 2
-    others = [v for k, v in loc["lag"]["pairs"].items() if k != "lon->p"]
-    assert not any(v["significant"] for v in others)
-    assert loc["summary"]["strongest_lag"]["input"] == "lon"
-    json.dumps(loc)
+    pair = loc.lag.pairs["lon->p"]
+    assert pair.significant
+    assert abs(pair.peak_lag_s - delay) <= DT / 2
+    others = [v for k, v in loc.lag.pairs.items() if k != "lon->p"]
+    assert not any(v.significant for v in others)
+    assert loc.summary.strongest_lag == pair
+    content = json.loads(json.dumps(loc.to_json(), allow_nan=False))
+    assert content["summary"]["strongest_lag"] == {"input": "lon", "channel": "p", "peak_lag_s": pair.peak_lag_s,
+                                                   "peak_value": pair.peak_value, "threshold": pair.threshold,
+                                                   "significant": True}
+    assert Localisation.from_json(content) == loc and Localisation.from_json(content).to_json() == content
 
 
 def test_residual_growing_with_amplitude_is_flagged_and_noise_is_not():
@@ -127,14 +132,14 @@ def test_residual_growing_with_amplitude_is_flagged_and_noise_is_not():
     result = {}
     for name, residual in cases.items():
         loc = localise(_flight(u, measured), measured - residual, window_seconds=2.5)
-        result[name] = loc["window"]["amplitude_correlation"]
-        assert loc["window"]["window_s"] == pytest.approx(2.5)
-    assert result["quadratic"]["p"]["significant"] and result["quadratic"]["p"]["p_value"] < 1e-3
-    assert result["quadratic"]["p"]["exponent_ci"][0] > 2.5
-    lo, hi = result["linear"]["p"]["exponent_ci"]
+        result[name] = loc.window.amplitude_correlation
+        assert loc.window.window_s == pytest.approx(2.5)
+    assert result["quadratic"]["p"].significant and result["quadratic"]["p"].p_value < 1e-3
+    assert result["quadratic"]["p"].exponent_ci[0] > 2.5
+    lo, hi = result["linear"]["p"].exponent_ci
     assert lo < 2.0 < hi
-    assert not result["noise"]["overall"]["significant"]
-    lo, hi = result["noise"]["overall"]["exponent_ci"]
+    assert not result["noise"]["overall"].significant
+    lo, hi = result["noise"]["overall"].exponent_ci
     assert lo < 0.0 < hi
 
 
@@ -148,17 +153,17 @@ def test_band_and_window_shares_sum_to_the_channel_gap():
     gap = np.sum(residual**2, axis=0) / np.sum((measured - measured.mean(axis=0)) ** 2, axis=0)
     np.testing.assert_allclose(gap, np.asarray(nmse(sim, measured)), rtol=1e-12)
     for c, name in enumerate(("p", "q")):
-        assert loc["channel"][name]["nmse"] == pytest.approx(gap[c], rel=1e-12)
-        parts = [b["channels"][name] for b in loc["band"]]
-        assert sum(p["share"] for p in parts) == pytest.approx(1.0, abs=1e-12)
-        assert sum(p["nmse_part"] for p in parts) == pytest.approx(gap[c], rel=1e-10)
-        assert sum(p["residual_power"] for p in parts) == pytest.approx(np.mean(residual[:, c] ** 2), rel=1e-10)
-        assert sum(e[name] for e in loc["window"]["energy"]) == pytest.approx(gap[c], rel=1e-10)
-    one_to_two = next(b for b in loc["band"] if b["range_hz"] == [1.0, 2.0])
-    assert one_to_two["channels"]["p"]["share"] > 0.999
-    assert one_to_two["channels"]["p"]["residual_power"] == pytest.approx(0.4**2 / 2, rel=1e-6)
-    assert sum(loc["window"]["share"]) == pytest.approx(1.0, abs=1e-12)
-    assert sum(c["share"] for c in loc["channel"].values()) == pytest.approx(1.0, abs=1e-12)
+        assert loc.channel[name].nmse == pytest.approx(gap[c], rel=1e-12)
+        parts = [b.channels[name] for b in loc.band]
+        assert sum(p.share for p in parts) == pytest.approx(1.0, abs=1e-12)
+        assert sum(p.nmse_part for p in parts) == pytest.approx(gap[c], rel=1e-10)
+        assert sum(p.residual_power for p in parts) == pytest.approx(np.mean(residual[:, c] ** 2), rel=1e-10)
+        assert sum(e[name] for e in loc.window.energy) == pytest.approx(gap[c], rel=1e-10)
+    one_to_two = next(b for b in loc.band if b.range_hz == (1.0, 2.0))
+    assert one_to_two.channels["p"].share > 0.999
+    assert one_to_two.channels["p"].residual_power == pytest.approx(0.4**2 / 2, rel=1e-6)
+    assert sum(loc.window.share) == pytest.approx(1.0, abs=1e-12)
+    assert sum(c.share for c in loc.channel.values()) == pytest.approx(1.0, abs=1e-12)
     with pytest.raises(ValueError, match="bands"):
         localise(_flight(u, measured), sim, bands=(0.0, 1.0, 2.0))
 
@@ -169,13 +174,13 @@ def test_white_residual_has_low_coherence_and_input_driven_residual_high():
     residual = np.stack([_noise(20, N), driven / driven.std() + 0.05 * _noise(21, N)], axis=1)
     measured = _noise(22, (N, 2))
     loc = localise(_flight(u, measured), measured - residual)
-    for band in loc["band"]:
-        white, structured = band["coherence"]["p"], band["coherence"]["q"]
-        assert white["verdict"] == "noise"
-        assert white["coherent_share"] < 0.35
-        if band["range_hz"][1] <= 2.0:
-            assert structured["verdict"] == "structure" and structured["coherent_share"] > 0.9
-            assert structured["by_input"]["lat"] > 0.8 and structured["by_input"]["lon"] < 0.3
+    for band in loc.band:
+        white, structured = band.coherence["p"], band.coherence["q"]
+        assert white.verdict == "noise"
+        assert white.coherent_share < 0.35
+        if band.range_hz[1] <= 2.0:
+            assert structured.verdict == "structure" and structured.coherent_share > 0.9
+            assert structured.by_input["lat"] > 0.8 and structured.by_input["lon"] < 0.3
 
 
 def test_localise_command_on_flight_c(shared_data, tmp_path):
@@ -209,7 +214,7 @@ def test_bad_input_is_named():
     with pytest.raises(ValueError, match="simulated"):
         localise(_flight(u, measured), measured[:, :1])
     perfect = localise(_flight(u, measured), measured)  # no residual: zero gap everywhere, no NaN
-    assert perfect["channel"]["p"]["nmse"] == 0.0 and sum(perfect["window"]["share"]) == 0.0
+    assert perfect.channel["p"].nmse == 0.0 and sum(perfect.window.share) == 0.0
     with pytest.raises(ValueError, match="not finite"):
         localise(_flight(u, measured), np.full_like(measured, np.nan))
     with pytest.raises(ValueError, match="segment_seconds"):

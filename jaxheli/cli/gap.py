@@ -131,17 +131,16 @@ def _cmd_localise(args: argparse.Namespace) -> int:
         theta, flight, outputs=outputs(args.outputs), x0=args.x0,
         localise_options={"window_seconds": args.window, "max_lag_seconds": args.max_lag}, **sim_options(args),
     )
-    s = report["summary"]
+    s = report.summary
     print(f"gap of {args.model} on {flight.source}:")
-    print("  nmse   " + "  ".join(f"{n} {c['nmse']:.3g}" for n, c in report["channel"].items()))
-    print(f"  worst channel {s['worst_channel']} (nmse {s['worst_channel_nmse']:.3g}); "
-          f"{100 * s['worst_band_share']:.0f}% of it in {s['worst_band_hz'][0]:g}-{s['worst_band_hz'][1]:.3g} Hz "
-          f"({s['worst_band_verdict']})")
-    print(f"  top window {s['top_window_s'][0]:.4g}-{s['top_window_s'][1]:.4g} s "
-          f"({100 * s['top_window_share']:.0f}% of the energy); amplitude link: {s['amplitude_link']}")
-    lag = s["strongest_lag"]
-    print(f"  strongest lag {lag['input']}->{lag['channel']} {lag['peak_lag_s']:.3g} s, rho {lag['peak_value']:.3f} "
-          f"(threshold {lag['threshold']:.3f})")
+    print("  nmse   " + "  ".join(f"{n} {c.nmse:.3g}" for n, c in report.channel.items()))
+    print(f"  worst channel {s.worst_channel} (nmse {s.worst_channel_nmse:.3g}); "
+          f"{100 * s.worst_band_share:.0f}% of it in {s.worst_band_hz[0]:g}-{s.worst_band_hz[1]:.3g} Hz "
+          f"({s.worst_band_verdict})")
+    print(f"  top window {s.top_window_s[0]:.4g}-{s.top_window_s[1]:.4g} s "
+          f"({100 * s.top_window_share:.0f}% of the energy); amplitude link: {s.amplitude_link}")
+    lag = s.strongest_lag
+    print(f"  strongest lag {lag.name} {lag.peak_lag_s:.3g} s, rho {lag.peak_value:.3f} (threshold {lag.threshold:.3f})")
     for path in write_localisation(report, theta, flight, args.out):
         print(f"wrote {path}")
     return 0

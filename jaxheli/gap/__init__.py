@@ -8,6 +8,7 @@ from ..spectra import FrequencyResponse as FrequencyResponse, estimate_frequency
 from ..spectra import mismatch as mismatch, model_frequency_response as model_frequency_response
 from ..spectra import residual_frequency_response as residual_frequency_response
 from .localise import localise as localise
+from .localisation_record import Localisation as Localisation
 from .compare import frequency_comparison as frequency_comparison, localise_model as localise_model
 from .compare import localise_prediction as localise_prediction
 from .diagnose import diagnose as diagnose, write_diagnosis as write_diagnosis

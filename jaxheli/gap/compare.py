@@ -3,9 +3,11 @@ compare its frequency response with the flight's estimate, and write the report 
 
 from __future__ import annotations
 
+import dataclasses
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -14,6 +16,7 @@ from ..evaluate import resolve_params, started_simulator
 from ..model import G_SI, INPUT_NAMES
 from ..problem import make_problem
 from ..spectra import FrequencyResponse, estimate_frequency_response, mismatch, model_frequency_response
+from .localisation_record import Localisation
 from .localise import localise
 
 
@@ -35,12 +38,12 @@ def localise_model(
     min_coherence: float = 0.6,
     localise_options: dict | None = None,
     **sim_options,
-) -> tuple[dict[str, object], np.ndarray]:
+) -> tuple[Localisation, np.ndarray]:
     """Simulate ``params`` (anything :func:`jaxheli.resolve_params` takes) on ``flight`` and localise the gap.
 
     ``x0`` as in :func:`jaxheli.evaluate`; ``sim_options`` are :class:`~jaxheli.problem.Settings` fields
     (``hold``, ``g``, ``segment``). Returns the
-    JSON report (:func:`localise`'s keys plus ``frequency_response``: per ``input->output`` pair the
+    localisation (:func:`localise`'s, with ``frequency_response``: per ``input->output`` pair the
     coherent bins, mean magnitude (dB) and phase (deg) errors and CIFER cost from :func:`mismatch`, and
     ``simulation``) and the simulated outputs ``[N, k]``.
     """
@@ -60,40 +63,39 @@ def localise_prediction(
     flight: FlightData,
     simulated: np.ndarray,
     outputs: Sequence[str],
-    simulation: dict,
+    simulation: Mapping[str, Any],
     *,
     min_coherence: float = 0.6,
     localise_options: dict | None = None,
-) -> dict[str, object]:
+) -> Localisation:
     """Localise the gap between ``flight`` and any prediction ``simulated[N, k]`` of ``theta`` on ``outputs``.
 
-    ``simulation`` describes how the prediction was made (stored as the report's ``simulation``; its ``g``,
-    m/s^2, also sets the model frequency response). Returns :func:`localise`'s keys plus
-    ``frequency_response`` (see :func:`localise_model`) and ``simulation``.
+    ``simulation`` describes how the prediction was made (JSON settings, kept as the localisation's
+    ``simulation``; its ``g``, m/s^2, also sets the model frequency response). Returns :func:`localise`'s
+    localisation with ``frequency_response`` (see :func:`localise_model`) and ``simulation``.
     """
     names = tuple(outputs)
-    report = localise(flight, simulated, names, **(localise_options or {}))
+    found = localise(flight, simulated, names, **(localise_options or {}))
     estimate, model = frequency_comparison(theta, flight, names, simulation["g"])
     errors = mismatch(estimate, model, min_coherence=min_coherence)
-    report["frequency_response"] = {
+    response = {
         f"{i}->{o}": {key: (None if not np.isfinite(v[k, m]) else float(v[k, m])) for key, v in errors.items()}
         for m, i in enumerate(INPUT_NAMES) for k, o in enumerate(names)
     }
-    report["simulation"] = simulation
-    return report
+    return dataclasses.replace(found, frequency_response=response, simulation=simulation)
 
 
-def write_localisation(report: dict, theta: np.ndarray, flight: FlightData, out: str | Path) -> list[Path]:
+def write_localisation(report: Localisation, theta: np.ndarray, flight: FlightData, out: str | Path) -> list[Path]:
     """Write ``localisation.json`` and the PNG plots (bands, lags, frequency response) into ``out``."""
     from ..plots import plot_frequency_response
     from .plots import plot_lag_correlation, plot_residual_bands
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    names = tuple(report["channel"])
+    names = tuple(report.channel)
     path = out / "localisation.json"
-    path.write_text(json.dumps(report, indent=1))
-    estimate, model = frequency_comparison(theta, flight, names, report["simulation"]["g"])
+    path.write_text(json.dumps(report.to_json(), indent=1))
+    estimate, model = frequency_comparison(theta, flight, names, report.simulation["g"])
     return [
         path,
         plot_residual_bands(report, out / "residual_bands.png", title=flight.source),

@@ -16,7 +16,6 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import equinox as eqx
 import jax
@@ -34,6 +33,7 @@ from ..effects import registry as fx
 from ..effects.plant import no_effect
 from .consistency import check
 from .compare import frequency_comparison, localise_prediction
+from .localisation_record import Localisation
 from .fit_effect import effect_eta as effect_eta
 from .predictor import Predictor, make_predictor
 from .ranking import diagnose_effects, predictor_pair
@@ -121,9 +121,6 @@ def diagnose(
     preds = predictor_pair(theta, *problems, segment=segment, g=g, track=track)
     attribution = diagnose_effects(theta, *preds, list(effects), top=top, joint=joint, bounds=bounds,
                                    max_steps=max_steps, min_shrink=min_shrink)
-    localisation = _localise_base(theta, validate, preds[1], segment)
-    if localise_train:
-        localisation["train"] = _localise_base(theta, train, preds[0], segment)
     gaps = [_gap(gap, names) for gap in np.asarray(nmse(predictions(theta, preds[1], attribution.shown),
                                                           validate.outputs))]
     return Diagnosis(
@@ -132,17 +129,18 @@ def diagnose(
         outputs=names,
         segment_s=segment,
         consistency=consistency,
-        localisation=localisation,
+        localisation=_localise_base(theta, validate, preds[1], segment),
         attribution=attribution,
         gap_before=gaps[0],
         gap_best=gaps[1],
         gap_combination=gaps[2] if len(gaps) > 2 else None,
+        localisation_train=_localise_base(theta, train, preds[0], segment) if localise_train else None,
     )
 
 
 def _localise_base(
     theta: Float[np.ndarray, "40"], flight: FlightData, pred: Predictor, segment: float,
-) -> dict[str, Any]:
+) -> Localisation:
     """Where the base model's segment-wise prediction ``pred`` (restarts every ``segment`` s) misses
     ``flight`` (:func:`localise_prediction`)."""
     base = predictions(theta, pred, [])[0]
@@ -174,8 +172,8 @@ def write_diagnosis(
     names = diagnosis.outputs
     flight = validate.select(names)
     content = diagnosis.to_json()
-    local = content["localisation"]
-    g = local["simulation"]["g"]
+    local = diagnosis.localisation
+    g = local.simulation["g"]
     (out / "diagnosis.json").write_text(json.dumps(content, indent=1))
     (out / "consistency.json").write_text(json.dumps(content["consistency"], indent=1))
     shown = diagnosis.attribution.shown

@@ -2,8 +2,9 @@
 
 The gap of a channel is its normalised residual energy :func:`jaxheli.cost.nmse`,
 ``sum r^2 / sum (m - mean m)^2``. Every breakdown below splits that number exactly (bands and windows
-sum to it), so shares are comparable across channels of different units. The result is plain JSON
-(floats, lists, dicts; ``None`` where a quantity is undefined, e.g. a band with no Welch bin).
+sum to it), so shares are comparable across channels of different units. The result is a frozen
+:class:`~jaxheli.gap.localisation_record.Localisation` (``None`` where a quantity is undefined, e.g. a band with no
+Welch bin; ``to_json`` for files).
 
 Closed-loop caveat: a pilot reacts to the helicopter, so the sticks partly follow disturbances; an
 input-correlated residual is then not proof of missing structure, only evidence for it.
@@ -23,6 +24,9 @@ from ..cost import nmse, pearson, rmse, tic
 from ..data.flight import FlightData
 from ..model import INPUT_NAMES
 from ..spectra import FrequencyResponse, residual_frequency_response
+from .localisation_record import (
+    AmplitudeLink, Band, BandCoherence, BandPower, ChannelGap, LagPair, Lags, Localisation, Summary, TopWindow, Windows,
+)
 
 DEFAULT_BANDS: tuple[float | None, ...] = (0.0, 0.5, 1.0, 2.0, 5.0, None)
 """Band edges, Hz; ``None`` is the Nyquist frequency."""
@@ -41,7 +45,7 @@ def localise(
     max_lag_seconds: float = 1.0,
     segment_seconds: float | None = None,
     level: float = 0.95,
-) -> dict[str, object]:
+) -> Localisation:
     """Localise the gap between ``flight`` and a model's ``simulated[N, k]`` outputs (channels ``outputs``,
     default all of the flight's).
 
@@ -52,7 +56,7 @@ def localise(
         segment_seconds: Welch segment for the coherence (default :func:`default_segment`).
         level: confidence level of the significance thresholds.
 
-    Returns ``{"channel", "band", "window", "lag", "summary", "inputs"}`` (see the ``_by_*`` helpers).
+    Returns the gap by channel, band, window and lag, and its summary (see the ``_by_*`` helpers).
     """
     names = tuple(outputs) if outputs is not None else flight.output_names
     meas = flight.select(names).outputs
@@ -74,18 +78,10 @@ def localise(
     band = _by_band(inputs, meas, sim, flight.dt, names, used, bands, segment_seconds, level)
     window = _by_window(flight.time, inputs, residual, meas, names, window_seconds, level)
     lag = _by_lag(inputs, residual, flight.dt, names, used, max_lag_seconds, level)
-    return {
-        "source": flight.source,
-        "inputs": list(used),
-        "channel": channel,
-        "band": band,
-        "window": window,
-        "lag": lag,
-        "summary": _summary(channel, band, window, lag, names),
-    }
+    return Localisation(flight.source, used, channel, band, window, lag, _summary(channel, band, window, lag, names))
 
 
-def _by_channel(sim: np.ndarray, meas: np.ndarray, names: tuple[str, ...]) -> dict[str, dict[str, float]]:
+def _by_channel(sim: np.ndarray, meas: np.ndarray, names: tuple[str, ...]) -> dict[str, ChannelGap]:
     """Per channel: ``nmse``, ``share`` of the summed nmse, ``one_minus_rho``, ``tic``, ``rmse`` (units)."""
     gap = np.asarray(nmse(sim, meas))
     rho = np.asarray(pearson(sim, meas))
@@ -93,8 +89,8 @@ def _by_channel(sim: np.ndarray, meas: np.ndarray, names: tuple[str, ...]) -> di
     err = np.asarray(rmse(sim, meas))
     total = gap.sum()
     return {
-        n: {"nmse": float(gap[c]), "share": float(gap[c] / total) if total > 0 else 0.0,
-            "one_minus_rho": float(1.0 - rho[c]), "tic": float(theil[c]), "rmse": float(err[c])}
+        n: ChannelGap(nmse=float(gap[c]), share=float(gap[c] / total) if total > 0 else 0.0,
+                      one_minus_rho=float(1.0 - rho[c]), tic=float(theil[c]), rmse=float(err[c]))
         for c, n in enumerate(names)
     }
 
@@ -117,7 +113,7 @@ def _band_edges(bands: Sequence[float | None], nyquist: float) -> list[tuple[flo
     return list(zip(edges[:-1], edges[1:]))
 
 
-def _by_band(inputs, meas, sim, dt, names, used, bands, segment_seconds, level) -> list[dict[str, object]]:
+def _by_band(inputs, meas, sim, dt, names, used, bands, segment_seconds, level) -> tuple[Band, ...]:
     """Per band ``[lo, hi)`` Hz: residual and measured power (mean square, units^2), ``ratio`` residual over
     measured power, ``nmse_part`` (sums over bands to the channel nmse), ``share`` of the channel's residual
     energy, and the input-residual ``coherence``: the band mean of the multiple coherence, the
@@ -139,22 +135,21 @@ def _by_band(inputs, meas, sim, dt, names, used, bands, segment_seconds, level) 
         per = {}
         for c, n in enumerate(names):
             r, m = res_pow[in_full, c].sum(), meas_pow[in_full, c].sum()
-            per[n] = {
-                "residual_power": float(r),
-                "measured_power": float(m),
-                "ratio": float(r / m) if m > 0 else None,
-                "nmse_part": float(r / meas_total[c]) if meas_total[c] > 0 else None,
-                "share": float(r / res_total[c]) if res_total[c] > 0 else 0.0,
-            }
-        out.append({
-            "range_hz": [float(lo), float(hi)],
-            "channels": per,
-            "coherence": _band_coherence(frf, lo, hi, last, names, used, partial_th, multiple_th),
-        })
-    return out
+            per[n] = BandPower(
+                residual_power=float(r),
+                measured_power=float(m),
+                ratio=float(r / m) if m > 0 else None,
+                nmse_part=float(r / meas_total[c]) if meas_total[c] > 0 else None,
+                share=float(r / res_total[c]) if res_total[c] > 0 else 0.0,
+            )
+        out.append(Band((float(lo), float(hi)), per,
+                        _band_coherence(frf, lo, hi, last, names, used, partial_th, multiple_th)))
+    return tuple(out)
 
 
-def _band_coherence(frf: FrequencyResponse, lo, hi, last, names, used, partial_th, multiple_th):
+def _band_coherence(
+    frf: FrequencyResponse, lo, hi, last, names, used, partial_th, multiple_th,
+) -> dict[str, BandCoherence | None]:
     f = np.asarray(frf.freq)
     sel = (f >= lo) & ((f <= hi) if last else (f < hi))
     if not sel.any():
@@ -168,29 +163,29 @@ def _band_coherence(frf: FrequencyResponse, lo, hi, last, names, used, partial_t
     out = {}
     for c, n in enumerate(names):
         above = float(np.mean(multiple[:, c] > multiple_th))
-        out[n] = {
-            "bins": int(sel.sum()),
-            "multiple_mean": float(multiple[:, c].mean()),
-            "coherent_share": float(np.clip((raw[c] - bias) / (1.0 - bias), 0.0, 1.0)),
-            "null_mean": bias,
-            "threshold": multiple_th,
-            "above_threshold": above,
-            "verdict": "structure" if above >= 0.5 else ("noise" if above <= 0.2 else "mixed"),
-            "by_input": {i: float(partial[:, c, j].mean()) for j, i in enumerate(used)},
-            "partial_threshold": partial_th,
-        }
+        out[n] = BandCoherence(
+            bins=int(sel.sum()),
+            multiple_mean=float(multiple[:, c].mean()),
+            coherent_share=float(np.clip((raw[c] - bias) / (1.0 - bias), 0.0, 1.0)),
+            null_mean=bias,
+            threshold=multiple_th,
+            above_threshold=above,
+            verdict="structure" if above >= 0.5 else ("noise" if above <= 0.2 else "mixed"),
+            by_input={i: float(partial[:, c, j].mean()) for j, i in enumerate(used)},
+            partial_threshold=partial_th,
+        )
     return out
 
 
-def _fisher_ci(rho: float, n: int, level: float, se_scale: float = 1.0) -> list[float] | None:
+def _fisher_ci(rho: float, n: int, level: float, se_scale: float = 1.0) -> tuple[float, float] | None:
     if n < 5 or abs(rho) >= 1:
         return None
     z = np.arctanh(rho)
     half = scipy.stats.norm.ppf(0.5 + level / 2) * se_scale / np.sqrt(n - 3)
-    return [float(np.tanh(z - half)), float(np.tanh(z + half))]
+    return float(np.tanh(z - half)), float(np.tanh(z + half))
 
 
-def _by_window(time, inputs, residual, meas, names, window_seconds, level) -> dict[str, object]:
+def _by_window(time, inputs, residual, meas, names, window_seconds, level) -> Windows:
     """Residual energy per time window and its link to input amplitude (the nonlinearity signature).
 
     ``energy[w][c]`` is the window's part of channel ``c``'s nmse (sums over windows to it); ``share[w]``
@@ -220,36 +215,34 @@ def _by_window(time, inputs, residual, meas, names, window_seconds, level) -> di
     correlation = {"overall": _amplitude_link(per_sample, amplitude, level)}
     for c, name in enumerate(names):
         correlation[name] = _amplitude_link(energy[:, c] / sizes, amplitude, level)
-    return {
-        "window_s": float(length * (time[1] - time[0])),
-        "start_s": [float(time[a]) for a in bounds[:-1]],
-        "energy": [{name: float(e[c]) for c, name in enumerate(names)} for e in energy],
-        "share": share.tolist(),
-        "amplitude": amplitude.tolist(),
-        "top": {"index": top, "start_s": float(time[bounds[top]]), "stop_s": float(time[bounds[top + 1] - 1]),
-                "share": float(share[top])},
-        "half_energy_fraction": float(half / count),
-        "amplitude_correlation": correlation,
-    }
+    return Windows(
+        window_s=float(length * (time[1] - time[0])),
+        start_s=tuple(float(time[a]) for a in bounds[:-1]),
+        energy=tuple({name: float(e[c]) for c, name in enumerate(names)} for e in energy),
+        share=tuple(share.tolist()),
+        amplitude=tuple(amplitude.tolist()),
+        top=TopWindow(top, float(time[bounds[top]]), float(time[bounds[top + 1] - 1]), float(share[top])),
+        half_energy_fraction=float(half / count),
+        amplitude_correlation=correlation,
+    )
 
 
-def _amplitude_link(energy: np.ndarray, amplitude: np.ndarray, level: float) -> dict[str, object]:
+def _amplitude_link(energy: np.ndarray, amplitude: np.ndarray, level: float) -> AmplitudeLink:
     count = energy.size
     if count < 5 or np.ptp(amplitude) <= 0 or np.ptp(energy) <= 0:
-        return {"spearman": None, "p_value": None, "ci": None, "exponent": None, "exponent_ci": None,
-                "significant": False, "windows": int(count)}
+        return AmplitudeLink(None, None, None, None, None, significant=False, windows=int(count))
     rho, p = scipy.stats.spearmanr(energy, amplitude)
     fit = scipy.stats.linregress(np.log(amplitude), np.log(np.maximum(energy, np.finfo(float).tiny)))
     t = scipy.stats.t.ppf(0.5 + level / 2, count - 2)
-    return {
-        "spearman": float(rho),
-        "p_value": float(p),
-        "ci": _fisher_ci(float(rho), count, level, se_scale=np.sqrt(1.06)),
-        "exponent": float(fit.slope),
-        "exponent_ci": [float(fit.slope - t * fit.stderr), float(fit.slope + t * fit.stderr)],
-        "significant": bool(p < 1.0 - level and rho > 0),
-        "windows": int(count),
-    }
+    return AmplitudeLink(
+        spearman=float(rho),
+        p_value=float(p),
+        ci=_fisher_ci(float(rho), count, level, se_scale=np.sqrt(1.06)),
+        exponent=float(fit.slope),
+        exponent_ci=(float(fit.slope - t * fit.stderr), float(fit.slope + t * fit.stderr)),
+        significant=bool(p < 1.0 - level and rho > 0),
+        windows=int(count),
+    )
 
 
 @jax.jit
@@ -269,7 +262,7 @@ def _cross_correlation(u: jnp.ndarray, r: jnp.ndarray, lags: jnp.ndarray) -> tup
     return cross[idx], auto_u[idx], auto_r[idx]
 
 
-def _by_lag(inputs, residual, dt, names, used, max_lag_seconds, level) -> dict[str, object]:
+def _by_lag(inputs, residual, dt, names, used, max_lag_seconds, level) -> Lags:
     """Input-residual cross-correlation per (input, channel) over lags ``-L..L`` (positive: the residual
     follows the input). ``peak`` is the largest ``|rho|`` at lags >= 0 (the delay signature: a missing
     path with delay d peaks at d; a model lacking a pure delay shows a negative lobe near 0 and a positive
@@ -289,30 +282,32 @@ def _by_lag(inputs, residual, dt, names, used, max_lag_seconds, level) -> dict[s
             curve = cross[causal, j, c]
             at = int(np.argmax(np.abs(curve)))
             threshold = float(z * np.sqrt(max(bartlett[j, c], 1.0 / n)))
-            pairs[f"{i}->{name}"] = {
-                "input": i, "channel": name,
-                "peak_lag_s": float(lags[causal][at] * dt), "peak_value": float(curve[at]),
-                "threshold": threshold, "significant": bool(abs(curve[at]) > threshold),
-                "curve": cross[:, j, c].tolist(),
-            }
-    return {"lags_s": (lags * dt).tolist(), "pairs": pairs}
+            pair = LagPair(
+                input=i, channel=name,
+                peak_lag_s=float(lags[causal][at] * dt), peak_value=float(curve[at]),
+                threshold=threshold, significant=bool(abs(curve[at]) > threshold),
+                curve=tuple(cross[:, j, c].tolist()),
+            )
+            pairs[pair.name] = pair
+    return Lags(tuple((lags * dt).tolist()), pairs)
 
 
-def _summary(channel, band, window, lag, names) -> dict[str, object]:
+def _summary(
+    channel: dict[str, ChannelGap], band: tuple[Band, ...], window: Windows, lag: Lags, names: tuple[str, ...],
+) -> Summary:
     """The headline: worst channel, its worst band, the top window, the strongest significant lag."""
-    worst = max(names, key=lambda n: channel[n]["nmse"])
-    shares = [b["channels"][worst]["share"] for b in band]
+    worst = max(names, key=lambda n: channel[n].nmse)
+    shares = [b.channels[worst].share for b in band]
     where = int(np.argmax(shares))
-    strongest = max(lag["pairs"].values(), key=lambda p: abs(p["peak_value"]) / p["threshold"])
-    return {
-        "worst_channel": worst,
-        "worst_channel_nmse": channel[worst]["nmse"],
-        "worst_band_hz": band[where]["range_hz"],
-        "worst_band_share": shares[where],
-        "worst_band_verdict": (band[where]["coherence"][worst] or {}).get("verdict"),
-        "top_window_s": [window["top"]["start_s"], window["top"]["stop_s"]],
-        "top_window_share": window["top"]["share"],
-        "amplitude_link": window["amplitude_correlation"]["overall"]["significant"],
-        "strongest_lag": {k: strongest[k] for k in ("input", "channel", "peak_lag_s", "peak_value",
-                                                     "threshold", "significant")},
-    }
+    coherence = band[where].coherence[worst]
+    return Summary(
+        worst_channel=worst,
+        worst_channel_nmse=channel[worst].nmse,
+        worst_band_hz=band[where].range_hz,
+        worst_band_share=shares[where],
+        worst_band_verdict=None if coherence is None else coherence.verdict,
+        top_window_s=(window.top.start_s, window.top.stop_s),
+        top_window_share=window.top.share,
+        amplitude_link=window.amplitude_correlation["overall"].significant,
+        strongest_lag=max(lag.pairs.values(), key=lambda p: abs(p.peak_value) / p.threshold),
+    )

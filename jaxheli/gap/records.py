@@ -13,65 +13,14 @@ import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
-import numpy as np
-
 from .._json import json_ready
-from .._types import Float
-from ..effects.registry import Fitted, json_number
-from ..model import PARAM_NAMES
-
-
-Theta = Float[np.ndarray, "40"]
-"""Base parameters in the order of :data:`~jaxheli.model.PARAM_NAMES` (JSON: an object by name)."""
-
-
-def _named(theta: Theta) -> dict[str, float]:
-    return dict(zip(PARAM_NAMES, map(float, np.asarray(theta))))
-
-
-def _theta(named: Mapping[str, float | None]) -> Theta:
-    return np.array([json_number(named[n]) for n in PARAM_NAMES])
-
-
-def _floats(named: Mapping[str, float | None]) -> dict[str, float]:
-    return {k: json_number(v) for k, v in named.items()}
-
-
-_WRITE = {"Mapping[str, float]": dict, "Theta": _named, "tuple[str, ...]": list,
-          "tuple[Mapping[str, Any], ...]": list}
-"""How a record field of each annotated type is written to JSON (as it is where not named here)."""
-
-_READ = {"float": json_number, "int": int, "bool": bool, "str": str, "Mapping[str, float]": _floats,
-         "Theta": _theta, "tuple[str, ...]": tuple, "tuple[Mapping[str, Any], ...]": tuple}
-"""How a record field of each annotated type is read back from JSON."""
-
-
-def _write(record: Any, *omit: str) -> dict[str, Any]:
-    """The fields of a frozen record but ``omit``, by name, as JSON values (:data:`_WRITE`), in field order."""
-    return {f.name: _WRITE.get(f.type, _same)(getattr(record, f.name)) for f in dataclasses.fields(record)
-            if f.name not in omit}
-
-
-def _same(value: Any) -> Any:
-    return value
-
-
-def _json(record: Any) -> dict[str, Any] | None:
-    return None if record is None else record.to_json()
-
-
-def _maybe(read: Any, data: Mapping[str, Any] | None) -> Any:
-    return None if data is None else read(data)
-
-
-def _read(cls: type, data: Mapping[str, Any], **given: Any) -> Any:
-    """The record ``cls`` of JSON ``data``: the fields ``given``, the others read by their type (:data:`_READ`)."""
-    return cls(**{f.name: given[f.name] if f.name in given else _READ[f.type](data[f.name])
-                  for f in dataclasses.fields(cls)})
+from ..effects.registry import Fitted
+from ._record import Theta, _Flat, _json, _maybe, _named, _read, _write
+from .localisation_record import Localisation
 
 
 @dataclasses.dataclass(frozen=True)
-class LRTest:
+class LRTest(_Flat):
     """Likelihood-ratio test of a candidate against the reference on the training flight
     (:func:`~jaxheli.gap.significance.lr_test`)."""
 
@@ -79,15 +28,6 @@ class LRTest:
     dof: int
     p_value: float
     delta_aic: float
-
-    def to_json(self) -> dict[str, Any]:
-        """``{statistic, dof, p_value, delta_aic}``."""
-        return _write(self)
-
-    @classmethod
-    def from_json(cls, data: Mapping[str, Any]) -> LRTest:
-        """The inverse of :meth:`to_json`."""
-        return _read(cls, data)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -230,39 +170,21 @@ class Attribution:
 
 
 @dataclasses.dataclass(frozen=True)
-class Gap:
+class Gap(_Flat):
     """A model's gap on the validation flight: per channel and ``total`` (the channel mean)."""
 
     channel: Mapping[str, float]
     total: float
 
-    def to_json(self) -> dict[str, Any]:
-        """``{channel, total}``."""
-        return _write(self)
-
-    @classmethod
-    def from_json(cls, data: Mapping[str, Any]) -> Gap:
-        """The inverse of :meth:`to_json` (other keys ignored)."""
-        return _read(cls, data)
-
 
 @dataclasses.dataclass(frozen=True)
-class FlightSummary:
+class FlightSummary(_Flat):
     """A diagnosed flight: its source, sample count, step (s) and preprocessing records."""
 
     source: str
     samples: int
     dt: float
     preprocessing: tuple[Mapping[str, Any], ...]
-
-    def to_json(self) -> dict[str, Any]:
-        """``{source, samples, dt, preprocessing}``."""
-        return _write(self)
-
-    @classmethod
-    def from_json(cls, data: Mapping[str, Any]) -> FlightSummary:
-        """The inverse of :meth:`to_json`."""
-        return _read(cls, data)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -275,11 +197,13 @@ class Diagnosis:
         outputs: the channels diagnosed; ``segment_s`` the predictions' restart interval (s).
         consistency: data-consistency findings of both flights, as JSON (:meth:`Finding.to_json` with a
             ``flight`` key).
-        localisation: where the base model misses the validation flight (the training flight's under ``train``),
-            as :func:`~jaxheli.gap.compare.localise_prediction` gives it.
+        localisation: where the base model misses the validation flight
+            (:func:`~jaxheli.gap.compare.localise_prediction`).
         attribution: the ranked effects and what follows from them.
         gap_before: the base model's gap; ``gap_best`` and ``gap_combination`` those of the best entry and the
             combination (``None`` without one).
+        localisation_train: where it misses the training flight (``None``: not localised; JSON: the
+            localisation's ``train``).
     """
 
     model: str
@@ -287,24 +211,26 @@ class Diagnosis:
     outputs: tuple[str, ...]
     segment_s: float
     consistency: tuple[Mapping[str, Any], ...]
-    localisation: Mapping[str, Any]
+    localisation: Localisation
     attribution: Attribution
     gap_before: Gap
     gap_best: Gap
     gap_combination: Gap | None
+    localisation_train: Localisation | None = None
 
     def to_json(self) -> dict[str, Any]:
         """``diagnosis.json``: strict JSON values (:func:`~jaxheli._json.json_ready`), ``gap_after`` holding the
         shown entries' gaps under ``best`` and ``combination``, each with its ``effect``."""
         gaps = (self.gap_best, self.gap_combination)
         after = [{"effect": e.effect, **g.to_json()} for e, g in zip(self.attribution.shown, gaps)]
+        train = {} if self.localisation_train is None else {"train": self.localisation_train.to_json()}
         return json_ready({
             "model": self.model,
             "flights": {role: f.to_json() for role, f in self.flights.items()},
             "outputs": list(self.outputs),
             "segment_s": self.segment_s,
             "consistency": list(self.consistency),
-            "localisation": self.localisation,
+            "localisation": {**self.localisation.to_json(), **train},
             **self.attribution.to_json(),
             "gap_before": self.gap_before.to_json(),
             "gap_after": {"best": after[0], "combination": after[1] if len(after) > 1 else None},
@@ -312,9 +238,11 @@ class Diagnosis:
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Diagnosis:
-        """The inverse of :meth:`to_json` (arrays of the localisation come back as lists)."""
-        after = data["gap_after"]
+        """The inverse of :meth:`to_json`."""
+        after, local = data["gap_after"], data["localisation"]
         return _read(cls, data, flights={role: FlightSummary.from_json(f) for role, f in data["flights"].items()},
-                     localisation=data["localisation"], attribution=Attribution.from_json(data),
+                     localisation=Localisation.from_json(local),
+                     localisation_train=_maybe(Localisation.from_json, local.get("train")),
+                     attribution=Attribution.from_json(data),
                      gap_before=Gap.from_json(data["gap_before"]), gap_best=Gap.from_json(after["best"]),
                      gap_combination=_maybe(Gap.from_json, after["combination"]))
