@@ -67,8 +67,8 @@ def run_pair(name: str, train: jaxheli.FlightData, validate: jaxheli.FlightData,
     pearson = ", ".join(f"{c} {v:.3f}" for c, v in result.validate["pearson"].items())
     return [f"### {name}: train {train.source} ({train.duration:.1f} s), validate {validate.source} "
             f"({validate.duration:.1f} s)", "", f"PEM validation Pearson: {pearson}", "",
-            f"Largest gap: `{json.dumps(diagnosis['localisation']['summary'])}`", "", "```",
-            *ranking_table(diagnosis), "```", "", f"Verdict: {diagnosis['verdict']}", ""]
+            f"Largest gap: `{json.dumps(diagnosis.localisation.summary.to_json())}`", "", "```",
+            *ranking_table(diagnosis), "```", "", f"Verdict: {diagnosis.verdict}", ""]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -258,13 +258,14 @@ display(Image(filename=str(OUT / best / "verification_validate.png")))
 theta = results["pem"].params
 diagnosis = diagnose(theta, train, validate, effects=("input_delay", "control_saturation"),
                      segment=2.0, top=2, max_steps=15, localise_train=False)
-print("largest gap:", diagnosis["localisation"]["summary"])
+print("largest gap:", diagnosis.localisation.summary.to_json())
 print("\n".join(ranking_table(diagnosis)))
-print("verdict:", diagnosis["verdict"])
+print("verdict:", diagnosis.verdict)
 written = write_diagnosis(diagnosis, theta, validate, OUT / "diagnosis")
 for png in (p for p in written if p.suffix == ".png"):
     display(Image(filename=str(png)))
-summary["diagnosis"] = {k: diagnosis[k] for k in ("verdict", "ranking", "base_refit", "gap_before", "gap_after")}
+summary["diagnosis"] = {k: v for k, v in diagnosis.to_json().items()
+                        if k in ("verdict", "ranking", "base_refit", "gap_before", "gap_after")}
 
 # %% [markdown]
 # The top effect names the input and its size: a saturation on `lon`, the one hidden in the flights. Its
