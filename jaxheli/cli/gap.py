@@ -22,7 +22,7 @@ from ._options import add_load_options, add_sim_options, finding_line, outputs, 
 def add_check_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``jaxheli check FILE --out DIR`` on the CLI's sub-command parsers."""
     p = subparsers.add_parser("check", help="data-consistency check of a flight (kinematics, velocity frame, biases)")
-    p.add_argument("file", metavar="FILE", help="flight file (.mat .csv .npz .px4log .bin) or 'default'")
+    p.add_argument("file", metavar="FILE", help="flight file (.mat .csv .npz .px4log .bin .ulg) or 'default'")
     p.add_argument("--out", default="jaxheli-check", help="output folder (consistency.json, consistency.png)")
     p.add_argument("--max-travel", type=float, default=MAX_TRAVEL_M,
                    help=f"plausible net displacement of the record, m (default {MAX_TRAVEL_M:g}: a hover test)")

@@ -13,7 +13,7 @@ def add_report_parser(subparsers: argparse._SubParsersAction) -> argparse.Argume
         "report",
         help="one self-contained HTML report of identification results (tables, plots, gap diagnosis)",
         description="Compare one or several results of 'jaxheli identify' side by side in one HTML file with no "
-        "external resources: data summary, parameters with 95%% intervals and standard errors, Table-1 metrics, "
+        "external resources: data summary, parameters with 95 % intervals and standard errors, Table-1 metrics, "
         "time-domain verification, frequency responses with coherence, convergence curves and the gap diagnosis.",
     )
     p.add_argument("results", nargs="+", metavar="RESULT", help="result folder or result.json of jaxheli identify")
