@@ -68,7 +68,7 @@ def run_pair(name: str, train: jaxheli.FlightData, validate: jaxheli.FlightData,
     return [f"### {name}: train {train.source} ({train.duration:.1f} s), validate {validate.source} "
             f"({validate.duration:.1f} s)", "", f"PEM validation Pearson: {pearson}", "",
             f"Largest gap: `{json.dumps(diagnosis.localisation.summary.to_json())}`", "", "```",
-            *ranking_table(diagnosis), "```", "", f"Verdict: {diagnosis.verdict}", ""]
+            *ranking_table(diagnosis), "```", "", f"Verdict: {diagnosis.attribution.verdict}", ""]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -260,7 +260,7 @@ diagnosis = diagnose(theta, train, validate, effects=("input_delay", "control_sa
                      segment=2.0, top=2, max_steps=15, localise_train=False)
 print("largest gap:", diagnosis.localisation.summary.to_json())
 print("\n".join(ranking_table(diagnosis)))
-print("verdict:", diagnosis.verdict)
+print("verdict:", diagnosis.attribution.verdict)
 written = write_diagnosis(diagnosis, theta, validate, OUT / "diagnosis")
 for png in (p for p in written if p.suffix == ".png"):
     display(Image(filename=str(png)))
