@@ -240,6 +240,7 @@ def identify(
     record = {
         "method": method, "iterations": iterations, "trials": trials, "outputs": list(problem.outputs),
         "segment": settings.segment, "hold": settings.hold, "g": settings.g, "pem_segment": pem_segment,
+        "lower": list(settings.lower), "upper": list(settings.upper),
         "cost": settings.cost, "polish_objective": polish_objective if method.endswith("+polish") else None,
         "polish_steps": polish_steps, "polish_rounds": polish_rounds, "train_source": str(problem.source),
         "validate_source": None if validate is None else validate.source,

@@ -130,3 +130,17 @@ def test_a_problem_with_conflicting_flight_settings_is_refused():
         identify(problem, method="pem", upper=UPPER + 1.0)
     result = identify(problem, method="pem", segment=2.0, outputs=["p", "q"], iterations=1, progress=False)
     assert tuple(result.settings["outputs"]) == ("p", "q") and result.settings["segment"] == 2.0
+
+
+def test_the_result_records_the_box_it_searched_and_flags_its_bounds_against_it():
+    """A box other than the authors' is recorded in the result's settings, and a parameter on that box's bound is
+    flagged against it (not against the authors' box)."""
+    from jaxheli.results import result_at_bounds
+
+    lower, upper = LOWER.copy(), UPPER.copy()
+    i = PARAM_NAMES.index("Lb")
+    upper[i] = 125.0  # below Table 2's Lb (133.6), which the roll response fixes: the fit ends on this bound
+    result = identify(bench_flight(200), method="pem", lower=lower, upper=upper, progress=False)
+    assert result.settings["upper"] == upper.tolist() and result.settings["lower"] == lower.tolist()
+    flagged = {a.name: a for a in result_at_bounds(result)}
+    assert flagged["Lb"].side == "upper" and flagged["Lb"].bound == 125.0
