@@ -46,14 +46,14 @@ from ..optim.pem import pem
 from ..synth.excitation import Excitation
 from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
 from ..gap.final_fit import final_fit
-from ..gap.thresholds import THRESHOLDS
-from . import truth as independent_truth
-from .independent import independent_trial
 from ..gap.fit_effect import with_reference
 from ..gap.records import Entry, Final, Refit
 from ..gap.ranking import fit_and_score, predictor_pair
 from ..gap.reference import base_refit, theta_box, withhold
 from ..gap.significance import MIN_SHRINK, MIN_Z, shrink_entries, yardstick
+from ..gap.thresholds import THRESHOLDS
+from . import truth as independent_truth
+from .independent import independent_trial
 
 KINDS: tuple[str, ...] = fx.ALL + ("none",)
 """Effect kinds of the blind check: every candidate plus the effect-free control."""
@@ -134,8 +134,8 @@ def sample_injection(kind: str, seed: int, outputs: tuple[str, ...] = DEFAULT_OU
     """Draw ``kind`` at a random realistic magnitude by its registry entry's sampler (``numpy`` generator
     seeded by ``seed``; ranges in :mod:`jaxheli.effects.catalogue`) for a flight of ``duration`` s with the
     synthetic flights' measurement noise (:data:`~jaxheli.synth.piloted.DEFAULT_NOISE`), its size parameters
-    (and wind) times ``strength``, each kept within 80 % of its physical bound (so none equals a fit's start: a saturation's
-    further start is 90, :mod:`jaxheli.effects.catalogue`)."""
+    (and wind) times ``strength``, each kept within 80 % of its physical bound (so none equals a fit's start: a
+    saturation's further start is 90, :mod:`jaxheli.effects.catalogue`)."""
     if kind not in KINDS:
         raise ValueError(f"sample_injection: unknown kind {kind!r}; kinds are {KINDS}")
     if kind == "none":

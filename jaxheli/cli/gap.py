@@ -177,7 +177,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 def _cmd_blind(args: argparse.Namespace) -> int:
     kinds = args.kinds or list(TRUTHS_SIM[args.truth])
     summary = run_benchmark(kinds, args.seeds, args.out, workers=args.workers, iwo_seeds=args.iwo_seeds,
-                            truth=args.truth, split=args.split, control_seeds=args.control_seeds, duration=args.duration, dt=args.dt, max_steps=args.max_steps,
+                            truth=args.truth, split=args.split, control_seeds=args.control_seeds,
+                            duration=args.duration, dt=args.dt, max_steps=args.max_steps,
                             pem_steps=args.pem_steps, iterations=args.iterations)
     print(markdown(summary))
     print(f"runtime {summary['runtime_s']:.0f} s; wrote {Path(args.out) / 'blind.json'} and blind.md")
