@@ -12,6 +12,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import TextIO
 
 from .bench import add_bench_parser, add_trials_scaling_parser
 from .gap import add_blind_parser, add_check_parser, add_diagnose_parser, add_localise_parser
@@ -43,8 +47,28 @@ def main(argv: list[str] | None = None) -> int:
     import jax
 
     jax.config.update("jax_enable_x64", not args.float32)
-    try:
-        return args.func(args)
-    except (FileNotFoundError, ValueError) as err:
-        print(f"jaxheli {args.command}: error: {err}", file=sys.stderr)
-        return 2
+    with _console_warnings(f"jaxheli {args.command}"):
+        try:
+            return args.func(args)
+        except (FileNotFoundError, ValueError) as err:
+            print(f"jaxheli {args.command}: error: {err}", file=sys.stderr)
+            return 2
+
+
+@contextmanager
+def _console_warnings(prog: str) -> Iterator[None]:
+    """Within the block, each warning the filters let through reaches stderr as one plain line
+    ``PROG: warning: MESSAGE`` (no source path or code line), a message repeated from anywhere only once; the
+    previous display comes back after it."""
+    shown: set[str] = set()
+
+    def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+             file: TextIO | None = None, line: str | None = None) -> None:
+        text = " ".join(str(message).split())
+        if text not in shown:
+            shown.add(text)
+            print(f"{prog}: warning: {text}", file=sys.stderr if file is None else file)
+
+    with warnings.catch_warnings():
+        warnings.showwarning = show
+        yield
