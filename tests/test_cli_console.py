@@ -6,6 +6,7 @@ import pytest
 
 import jaxheli.cli.identify
 from jaxheli.cli import main
+from jaxheli.cli.identify import _polish_line
 
 
 def _warns_twice(args):
@@ -23,3 +24,16 @@ def test_a_library_warning_is_one_plain_line_once(monkeypatch, tmp_path, capsys)
     lines = capsys.readouterr().err.splitlines()
     assert lines == ["jaxheli synth: warning: frequency fit skipped, IWO's best polished alone: no pair has 5 bins"]
     assert warnings.showwarning is shown
+
+
+POLISH = {"objective": "output-error", "objective_before": 12.3, "objective_after": 4.5, "cost_before": 1.598,
+          "cost_after": 7.968}
+
+
+def test_the_polish_reports_its_own_objective_and_the_search_cost_apart():
+    assert _polish_line(POLISH, "pearson") == (
+        "polish: output error per sample 12.3 -> 4.5 (its objective); search cost (pearson) 1.598 -> 7.968, "
+        "not minimised by the polish")
+    pure = {**POLISH, "objective": "pearson", "objective_before": 1.598, "objective_after": 0.9}
+    assert _polish_line(pure, "pearson") == ("polish: Pearson cost (paper Eq. 7) 1.598 -> 0.9 (its objective, also "
+                                             "the search cost)")

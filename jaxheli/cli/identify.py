@@ -98,6 +98,23 @@ def _print_metrics(title: str, block: dict, truth: dict | None = None) -> None:
     print(f"  cost (paper Eq. 7): {block['cost']:.6g}" + ("" if truth is None else f" (truth {truth['cost']:.6g})"))
 
 
+_OBJECTIVE_NAMES = {"output-error": "output error per sample", "pearson": "Pearson cost (paper Eq. 7)",
+                    "pem": "prediction error per sample"}
+"""How the console names each polish objective (:data:`~jaxheli.optim.polish.POLISH_OBJECTIVES`)."""
+
+
+def _polish_line(polish: dict, search_cost: str) -> str:
+    """The polish in one line: its own objective before -> after, and the search cost (``search_cost``, what IWO /
+    GA minimised) at the same two points, marked as not minimised by the polish unless it is the same objective
+    (a rise there is no regression)."""
+    line = (f"polish: {_OBJECTIVE_NAMES[polish['objective']]} {polish['objective_before']:.6g} -> "
+            f"{polish['objective_after']:.6g} (its objective")
+    if polish["objective"] == "pearson" == search_cost:
+        return line + ", also the search cost)"
+    return (line + f"); search cost ({search_cost}) {polish['cost_before']:.6g} -> {polish['cost_after']:.6g}, "
+            "not minimised by the polish")
+
+
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from ..evaluate import evaluate
 
@@ -156,9 +173,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         scored = tuple(c for c in result.settings["outputs"] if c in validate.output_names) or None
         print_verification(verify(result.params, validate, outputs=scored, hold=args.hold, g=args.g), args.method)
     if result.polish:
-        p = result.polish
-        print(f"polish ({p['objective']}): objective {p['objective_before']:.6g} -> {p['objective_after']:.6g}; "
-              f"search cost {p['cost_before']:.6g} -> {p['cost_after']:.6g}")
+        print(_polish_line(result.polish, result.settings["cost"]))
     if result.frequency:
         f = result.frequency
         print(f"CIFER cost J (flight vs model frequency responses, {f['fit']['settings']['band_hz'][0]:g}-"
