@@ -1,4 +1,5 @@
-"""What the command line prints around the library: its warnings as one plain line each."""
+"""What the command line prints around the library: its warnings as one plain line each, the polish against its
+own objective, and a bad argument as one line without the usage."""
 
 import warnings
 
@@ -37,3 +38,17 @@ def test_the_polish_reports_its_own_objective_and_the_search_cost_apart():
     pure = {**POLISH, "objective": "pearson", "objective_before": 1.598, "objective_after": 0.9}
     assert _polish_line(pure, "pearson") == ("polish: Pearson cost (paper Eq. 7) 1.598 -> 0.9 (its objective, also "
                                              "the search cost)")
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["identify", "--hold", "xyz"], "jaxheli identify: error: argument --hold: invalid choice: 'xyz' (choose from "
+                                    "'zoh', 'foh')"),
+    (["identify", "--trials", "many"], "jaxheli identify: error: argument --trials: invalid int value: 'many'"),
+    (["identfy"], "jaxheli: error: argument COMMAND: invalid choice: 'identfy'"),
+])
+def test_a_bad_argument_is_one_line_without_the_usage(argv, message, capsys):
+    with pytest.raises(SystemExit) as done:
+        main(argv)
+    lines = capsys.readouterr().err.splitlines()
+    assert done.value.code == 2 and len(lines) == 2
+    assert lines[0].startswith(message) and lines[1] == f"see {message.split(':')[0]} --help"

@@ -15,7 +15,7 @@ import sys
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import TextIO
+from typing import NoReturn, TextIO
 
 from .bench import add_bench_parser, add_trials_scaling_parser
 from .gap import add_blind_parser, add_check_parser, add_diagnose_parser, add_localise_parser
@@ -25,14 +25,21 @@ from .report import add_report_parser
 from .verify import add_verify_parser
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line and a pointer to ``--help``, without the usage text."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\nsee {self.prog} --help\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``jaxheli`` argument parser (all sub-commands)."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="jaxheli",
         description="System identification of small unmanned helicopters (Mettler's 13-state hover model) in JAX.",
     )
     parser.add_argument("--float32", action="store_true", help="compute in float32 (faster; default float64)")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
     for add in (add_prepare_parser, add_identify_parser, add_evaluate_parser, add_verify_parser, add_synth_parser,
                 add_check_parser,
                 add_localise_parser, add_diagnose_parser, add_blind_parser, add_bench_parser, add_trials_scaling_parser,
