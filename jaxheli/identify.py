@@ -30,7 +30,7 @@ from .model import G_SI, LOWER, PARAM_NAMES, UPPER
 from .optim.frequency_fit import FrequencyFitResult, IncoherentFlight, cifer_report, frequency_fit
 from .optim.ga import GA
 from .optim.iwo import IWO
-from .optim.pem import pem
+from .optim.pem import PEMResult, pem
 from .optim.output_error import output_error_problem
 from .optim.polish import PolishObjective, polish
 from .optim.run import minimize, minimize_trials
@@ -55,8 +55,9 @@ class IdentificationResult:
             parameter when the model diverges in the simulation they are computed on).
         train, validate: metric blocks of :func:`jaxheli.evaluate` (``validate`` ``None`` without a flight);
             ``validate["zero_initial_state"]`` repeats the scores from rest, the paper's convention.
-        polish: the best unpolished parameters and the cost before and after the gradient polish
-            (``None`` unless polished).
+        polish: the best unpolished parameters, the search cost and the polish's own objective before and after
+            the gradient polish, and that objective at the start and end of each polish round
+            (``objective_rounds``) (``None`` unless polished).
         seconds: wall time of the fit.
         truth: when the true parameters are known (synthetic flights): their parameters, their scores as
             ``train`` / ``validate`` and ``cramer_rao`` (:func:`~jaxheli.optim.uncertainty.cramer_rao_coverage`);
@@ -316,8 +317,19 @@ def _polish_trials(
         "objective_after": float(costs[after]),
         "steps": [p.n_steps for p in polished],
         "rounds": polished[after].settings.get("rounds"),
+        "objective_rounds": _objective_rounds(polished[after], objective, search.n_samples),
     }
     return np.stack([p.theta for p in polished]), costs, info
+
+
+def _objective_rounds(res: PEMResult, objective: PolishObjective, n_samples: int) -> list[list[float]]:
+    """``[start, end]`` of the polish's objective in each of its rounds (one for ``"pearson"`` and ``"pem"``), on
+    the scale of ``objective_before`` / ``objective_after``; the output-error polish's first rounds score shortened
+    runs, so a round may start above where the one before ended."""
+    if objective == "pearson":
+        return [[float(res.cost_start), float(res.cost)]]
+    rounds = res.settings.get("rounds") or [{"rss_start": res.rss_start, "rss": res.rss}]
+    return [[float(r["rss_start"]) / n_samples, float(r["rss"]) / n_samples] for r in rounds]
 
 
 def _frequency_block(fits: list[FrequencyFitResult], params: Float[np.ndarray, "40"]) -> dict[str, Any]:

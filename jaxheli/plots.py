@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from matplotlib.ticker import NullFormatter
+from matplotlib.ticker import MaxNLocator, NullFormatter
 
 from .model import INPUT_NAMES, STATE_UNITS
 from .spectra import FrequencyResponse
@@ -54,22 +54,44 @@ def plot_time_domain(
     return _save(fig, path)
 
 
-def plot_convergence(histories: Mapping[str, np.ndarray], path: str | Path, title: str = "") -> Path:
-    """Best cost per generation (log scale), one curve per label (e.g. per trial or method)."""
-    fig, ax = _subplots(figsize=(7, 4))
-    for label, history in histories.items():
-        h = np.asarray(history, dtype=float)
-        ax.plot(np.arange(1, h.size + 1), h, lw=1.0, label=label)
-    ax.set_yscale("log")
-    ax.set_xlabel("generation")
-    ax.set_ylabel("best cost (paper Eq. 7)")
-    ax.grid(alpha=0.3, which="both")
-    if len(histories) <= 12:
-        ax.legend(fontsize=8)
+def plot_convergence(
+    histories: Mapping[str, np.ndarray],
+    path: str | Path,
+    title: str = "",
+    polish: Mapping[str, Sequence[Sequence[float]]] | None = None,
+) -> Path:
+    """Best cost per generation (log scale), one curve per label (e.g. per trial or method); with ``polish``
+    (``{label: [[start, end] of each round]}``, the polish's own objective), a second panel goes on with the polish
+    rounds, each drawn from its start to its end."""
+    panels = int(bool(histories)) + int(bool(polish))
+    fig, axes = _subplots(1, panels, figsize=(7 + 4 * (panels - 1), 4), squeeze=False)
+    if histories:
+        ax = axes[0, 0]
+        for label, history in histories.items():
+            h = np.asarray(history, dtype=float)
+            ax.plot(np.arange(1, h.size + 1), h, lw=1.0, label=label)
+        _log_panel(ax, "generation", "best cost (paper Eq. 7)", len(histories) <= 12)
+    if polish:
+        ax = axes[0, -1]
+        for j, (label, rounds) in enumerate(polish.items()):
+            for k, ends in enumerate(rounds):
+                ax.plot([k, k + 1], ends, color=f"C{j % 10}", marker="o", lw=1.2, label=None if k else label)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        _log_panel(ax, "polish round", "polish objective (its own)", True)
     if title:
-        ax.set_title(title)
+        fig.suptitle(title)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _log_panel(ax: Any, xlabel: str, ylabel: str, legend: bool) -> None:
+    """Log-scale y, axis labels, grid and (when ``legend``) a legend on one convergence panel."""
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3, which="both")
+    if legend:
+        ax.legend(fontsize=8)
 
 
 def _decibels(response: np.ndarray) -> np.ndarray:

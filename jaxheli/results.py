@@ -82,7 +82,7 @@ def save_result(
     ``provenance``, the model's ``modes`` (:func:`result_modes`) and the parameters on a bound, ``at_bounds``
     (:func:`result_at_bounds`)), ``result.npz``, ``train_flight.npz`` / ``validate_flight.npz`` (the flights as the
     fit and the scores saw them; further training records as ``train_flight_2.npz``, ... listed in
-    ``data["train_records"]``) and the PNG plots (time-domain verification per record, convergence, and for the
+    ``data["train_records"]``) and the PNG plots (time-domain verification per record, convergence with the polish rounds, and for the
     frequency methods flight against model frequency responses).
     """
     out = Path(out_dir)
@@ -126,9 +126,11 @@ def save_result(
         )
     if result.frequency is not None:
         files.append(_frequency(result, records[0], out / "frequency_response.png"))
-    if result.history.size:
-        curves = {f"trial {k}": h for k, h in enumerate(result.history)}
-        files.append(plot_convergence(curves, out / "convergence.png", f"{result.method} convergence"))
+    polished = (result.polish or {}).get("objective_rounds")
+    if result.history.size or polished:
+        curves = {f"trial {k}": h for k, h in enumerate(result.history) if h.size}
+        rounds = {f"polish ({result.polish['objective']})": polished} if polished else None
+        files.append(plot_convergence(curves, out / "convergence.png", f"{result.method} convergence", rounds))
     return files
 
 

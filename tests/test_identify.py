@@ -114,6 +114,9 @@ def test_default_method_polishes_iwo_alone_when_no_pair_is_coherent():
     assert result.method == "iwo+freq+polish" and result.frequency is None
     assert "no (input, output) pair" in result.settings["frequency_skipped"]
     assert result.polish["rounds"][0].get("starts_rss") is None  # IWO's best alone
+    # one round, recorded on the scale of the objective reported for the polish (the convergence plot's panel)
+    assert result.polish["objective_rounds"] == [[pytest.approx(result.polish["objective_before"]),
+                                                  pytest.approx(result.polish["objective_after"])]]
 
 
 def test_a_problem_with_conflicting_flight_settings_is_refused():
@@ -144,3 +147,17 @@ def test_the_result_records_the_box_it_searched_and_flags_its_bounds_against_it(
     assert result.settings["upper"] == upper.tolist() and result.settings["lower"] == lower.tolist()
     flagged = {a.name: a for a in result_at_bounds(result)}
     assert flagged["Lb"].side == "upper" and flagged["Lb"].bound == 125.0
+
+
+def test_the_polish_rounds_are_recorded_on_the_scale_of_its_objective():
+    """``objective_rounds``: the paper's cost for a Pearson polish, else sums of squares per sample, one pair per
+    output-error round and one for the other objectives."""
+    from types import SimpleNamespace
+
+    from jaxheli.identify import _objective_rounds
+
+    res = SimpleNamespace(cost_start=2.0, cost=1.0, rss_start=40.0, rss=10.0, settings={"objective": "pem"})
+    assert _objective_rounds(res, "pearson", 10) == [[2.0, 1.0]]
+    assert _objective_rounds(res, "pem", 10) == [[4.0, 1.0]]
+    res.settings = {"rounds": [{"rss_start": 40.0, "rss": 20.0}, {"rss_start": 30.0, "rss": 10.0}]}
+    assert _objective_rounds(res, "output-error", 10) == [[4.0, 2.0], [3.0, 1.0]]

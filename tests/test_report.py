@@ -39,6 +39,10 @@ REQUIRE_BROWSER = bool(os.environ.get("CI")) or os.environ.get("JAXHELI_REQUIRE_
 HOSTILE = 'bias <b>"bold"</b> & <script>alert(1)</script>'
 """A message that would inject markup if the report did not escape it."""
 
+POLISH = {"objective": "output-error", "objective_before": 0.4321, "objective_after": 0.1234, "cost_before": 0.0211,
+          "cost_after": 0.0322, "objective_rounds": [[0.4321, 0.25], [0.3, 0.1234]]}
+"""A polish record as identify writes it: its objective falls round by round while the search cost rises."""
+
 
 def _block(level, cost):
     """A metrics block with known values (the report only reads and formats them)."""
@@ -46,7 +50,7 @@ def _block(level, cost):
             "tic": {c: 1.1 - level + 0.02 * k for k, c in enumerate(CHANNELS)}, "cost": cost}
 
 
-def _result(method, params, trial_params, history, train, validate, level):
+def _result(method, params, trial_params, history, train, validate, level, polish=None):
     settings = {"method": method, "iterations": history.shape[1], "trials": len(trial_params),
                 "outputs": list(CHANNELS), "segment": 2.0, "hold": "zoh", "g": 9.81,
                 "train_source": train.source, "validate_source": validate.source}
@@ -57,7 +61,7 @@ def _result(method, params, trial_params, history, train, validate, level):
         history=history, intervals95=intervals95(trial_params), stderr=stderr,
         train=_block(level, 0.01),
         validate={**_block(level - 0.1, 0.05), "zero_initial_state": _block(level - 0.2, 0.2)},
-        polish=None, seconds=1.5)
+        polish=polish, seconds=1.5)
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +78,7 @@ def case(tmp_path_factory):
     history = np.stack([np.geomspace(1.0, 0.02 * (k + 1), 20) for k in range(3)])
     results = {
         "pem": _result("pem", TABLE2.copy(), TABLE2[None], np.zeros((1, 0)), train, validate, 0.99),
-        "iwo": _result("iwo", trials[0], trials, history, train, validate, 0.9),
+        "iwo": _result("iwo", trials[0], trials, history, train, validate, 0.9, POLISH),
     }
     folders = {}
     for name, r in results.items():
@@ -233,8 +237,12 @@ def test_verification_and_frequency(case):
 
 def test_convergence_and_diagnosis(case):
     conv = _section(case["html"], "convergence")
-    assert len(_images(conv)) == 1
+    (png,) = _images(conv)
+    # the generations and, beside them, the polish rounds: two panels, 11 in at 110 dpi
+    assert matplotlib.image.imread(io.BytesIO(png), format="png").shape[1] == 11 * 110
     assert f"<td>{num(case['results']['iwo'].trial_costs.min())}</td>" in conv
+    assert "".join(f"<td>{POLISH[k]}</td>" for k in ("objective_before", "objective_after", "cost_before",
+                                                     "cost_after")) in conv
     diag = _section(case["html"], "diagnosis")
     for entry in case["diagnosis"]["ranking"]:
         assert entry["effect"] in diag and f"<td>{entry['shrink_pct']:.1f}</td>" in diag

@@ -24,12 +24,18 @@ def time_domain_png(
 
 
 def convergence_png(results: Sequence[ResultSource]) -> bytes | None:
-    """Best cost per generation of every trial of every result with a history (``None`` if none has one)."""
+    """Best cost per generation of every trial of every result with a history, and the polish's objective per
+    round of every polished result beside (``None`` if there is neither)."""
     curves = {
         (r.label if r.history.shape[0] == 1 else f"{r.label} trial {k}"): h
         for r in results for k, h in enumerate(r.history) if h.size
     }
-    return _render(plot_convergence, curves, title="convergence (best cost per generation)") if curves else None
+    rounds = {f"{r.label} ({polish['objective']})": polish["objective_rounds"]
+              for r in results if (polish := r.content.get("polish") or {}).get("objective_rounds")}
+    if not curves and not rounds:
+        return None
+    return _render(plot_convergence, curves, title="convergence (best cost per generation; polish rounds)",
+                   polish=rounds)
 
 
 def frequency_png(

@@ -213,19 +213,25 @@ def frequency_response(results: Sequence[ResultSource], flights: Sequence[Flight
 
 
 def convergence(results: Sequence[ResultSource]) -> Html:
-    """Best cost per generation (``result.npz`` histories), final trial costs and the polish step."""
+    """Best cost per generation (``result.npz`` histories) and the polish's own objective per round, final trial
+    costs, and the polish's objective and the search cost before and after it."""
     png = convergence_png(results)
-    body: list[Any] = [png_figure(png, "best cost (paper Eq. 7) per generation, every trial") if png else
+    body: list[Any] = [png_figure(png, "best cost (paper Eq. 7) per generation, every trial; beside it, the polish's "
+                                  "own objective from the start to the end of each round") if png else
                        note("No generation history in these results (PEM is a gradient method without generations).")]
     rows = []
     for r in results:
         costs = r.content.get("trial_costs") or []
         polish = r.content.get("polish") or {}
         rows.append([r.label, r.history.shape[1] or "-", len(costs), num(min(costs) if costs else None),
-                     num(max(costs) if costs else None), num(polish.get("cost_before")),
-                     num(polish.get("cost_after"))])
-    body.append(table(["method", "generations", "trials", "best trial cost", "worst trial cost",
-                       "cost before polish", "cost after polish"], rows))
+                     num(max(costs) if costs else None), polish.get("objective", "-"),
+                     num(polish.get("objective_before")), num(polish.get("objective_after")),
+                     num(polish.get("cost_before")), num(polish.get("cost_after"))])
+    body.append(table(["method", "generations", "trials", "best trial cost", "worst trial cost", "polish objective",
+                       "objective before polish", "objective after polish", "search cost before polish",
+                       "search cost after polish"], rows,
+                      caption="the polish minimises its own objective (unless it is the Pearson cost searched "
+                      "too), not the search cost, which may rise through it"))
     return section("convergence", TITLES["convergence"], *body)
 
 
