@@ -28,7 +28,7 @@ from jaxheli.io import load, save_csv
 from jaxheli.model import PARAM_NAMES, PINNED, TABLE2
 from jaxheli.data.preprocess import lowpass, trim
 from jaxheli.cli.report import add_report_parser as add_parser
-from jaxheli.report import SECTION_IDS, load_diagnosis, load_flights, load_results, write_report
+from jaxheli.report import SECTION_IDS, build_report, load_diagnosis, load_flights, load_results, write_report
 from jaxheli.report.html import esc, num
 from jaxheli.report.sections import data_summary
 from jaxheli.results import save_result
@@ -269,6 +269,32 @@ def test_without_flights_or_diagnosis(case, tmp_path):
     assert "jaxheli diagnose" in _section(html, "diagnosis")
     assert "--data FILE" in _section(html, "frequency-response")
     assert "gone/train.csv" in _section(html, "data-summary")
+
+
+def test_each_model_is_drawn_on_its_own_flights_unless_all_are_asked_for(case, tmp_path):
+    other = piloted_flight(duration=30.0, dt=0.05, seed=5).select(CHANNELS + ("r",))
+    other = load(save_csv(other, tmp_path / "other.csv"))
+    ga = _result("ga", TABLE2.copy(), TABLE2[None], np.zeros((1, 0)), other, other, 0.95)
+    save_result(ga, tmp_path / "ga", other, other)
+    results = load_results([case["folders"]["pem"], tmp_path / "ga"])
+    flights = load_flights(results)
+    assert [f.source for f in flights] == [case["train"].source, case["validate"].source, other.source]
+
+    def drawn(html):
+        """Per flight, the models drawn in the verification and in the frequency-response section."""
+        time = [re.findall(r'<td class="text">(\w+)</td><td class="text">Pearson', block)
+                for block in _section(html, "verification").split("<h3>")[1:]]
+        freq = [re.findall(r"<th[^>]*>(\w+) bins</th>", block)
+                for block in _section(html, "frequency-response").split("<h3>")[1:]]
+        return time, freq
+
+    own = [["pem"], ["pem"], ["ga"]]
+    assert drawn(build_report(results, flights)) == (own, own)
+    args = parser().parse_args(["report", str(case["folders"]["pem"]), str(tmp_path / "ga"), "--all-flights",
+                                "--out", str(tmp_path / "all.html")])
+    assert args.func(args) == 0
+    every = [["pem", "ga"]] * 3
+    assert drawn((tmp_path / "all.html").read_text()) == (every, every)
 
 
 def test_bad_inputs_name_file_and_field(tmp_path):

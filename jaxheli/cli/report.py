@@ -1,4 +1,4 @@
-"""``jaxheli report RESULT... [--diagnosis DIR_OR_JSON] [--data FILE] --out report.html``."""
+"""``jaxheli report RESULT... [--diagnosis DIR_OR_JSON] [--data FILE] [--all-flights] --out report.html``."""
 
 from __future__ import annotations
 
@@ -22,12 +22,16 @@ def add_report_parser(subparsers: argparse._SubParsersAction) -> argparse.Argume
     p.add_argument("--data", action="append", default=[], metavar="FILE",
                    help="flight file to plot (repeatable; 'default' for the embedded flight); default: the training "
                    "and validation files recorded in each result.json, when they exist")
+    p.add_argument("--all-flights", action="store_true",
+                   help="draw every model on every flight (default: each model on the flights it was fitted or "
+                   "validated on; every model on a flight only --data names)")
     p.add_argument("--out", default="report.html", help="output HTML file (default report.html)")
     p.set_defaults(func=_cmd_report)
     return p
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    path = write_report(args.results, args.out, diagnosis=args.diagnosis, data=args.data)
+    path = write_report(args.results, args.out, diagnosis=args.diagnosis, data=args.data,
+                        all_flights=args.all_flights)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
     return 0

@@ -13,16 +13,19 @@ from .inputs import DiagnosisSource, ResultSource, load_diagnosis, load_flights,
 
 
 def build_report(
-    results: Sequence[ResultSource], flights: Sequence[FlightData] = (), diagnosis: DiagnosisSource | None = None
+    results: Sequence[ResultSource], flights: Sequence[FlightData] = (), diagnosis: DiagnosisSource | None = None,
+    *, all_flights: bool = False,
 ) -> str:
-    """The self-contained HTML document (inline CSS, PNGs as base64) for ``results`` compared side by side."""
+    """The self-contained HTML document (inline CSS, PNGs as base64) for ``results`` compared side by side; each
+    model drawn on the flights it was fitted or validated on, or with ``all_flights`` on every flight
+    (:func:`~jaxheli.report.sections.drawn_on`)."""
     parts = {
         "overview": s.overview(results, flights, diagnosis),
         "data-summary": s.data_summary(results, flights),
         "parameters": s.parameters(results),
         "metrics": s.metrics(results),
-        "verification": s.verification(results, flights),
-        "frequency-response": s.frequency_response(results, flights),
+        "verification": s.verification(results, flights, all_flights),
+        "frequency-response": s.frequency_response(results, flights, all_flights),
         "convergence": s.convergence(results),
         "diagnosis": s.diagnosis(diagnosis, results),
     }
@@ -37,11 +40,14 @@ def write_report(
     *,
     diagnosis: str | Path | None = None,
     data: Sequence[str | Path] = (),
+    all_flights: bool = False,
 ) -> Path:
     """Read result folders / ``result.json`` files (and a diagnosis folder or JSON, and flight files when
-    given; otherwise the flights the results name), write the report to ``out`` and return its path."""
+    given; otherwise the flights the results name), write the report to ``out`` and return its path;
+    ``all_flights`` as in :func:`build_report`."""
     loaded = load_results(results)
-    html = build_report(loaded, load_flights(loaded, data), None if diagnosis is None else load_diagnosis(diagnosis))
+    html = build_report(loaded, load_flights(loaded, data), None if diagnosis is None else load_diagnosis(diagnosis),
+                        all_flights=all_flights)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(html, encoding="utf-8")

@@ -143,13 +143,13 @@ def metrics(results: Sequence[ResultSource]) -> Html:
                        "C = sum (1 - rho)^2 (Eq. 7)."), *body)
 
 
-def verification(results: Sequence[ResultSource], flights: Sequence[FlightData]) -> Html:
-    """Measured against simulated outputs on every loaded flight, all methods overlaid; without flights, the
-    verification PNGs saved beside each result."""
-    body: list[Any] = []
+def verification(results: Sequence[ResultSource], flights: Sequence[FlightData], all_flights: bool = False) -> Html:
+    """Measured against simulated outputs on every loaded flight, overlaid for the methods drawn on it
+    (:func:`drawn_on`); without flights, the verification PNGs saved beside each result."""
+    body: list[Any] = [tag("p", _DRAWN)] if flights and not all_flights else []
     for f in flights:
         chans = tuple(c for c in PLOT_CHANNELS if c in f.output_names) or f.output_names
-        sims = {r.label: simulate_as_scored(r.params, r.settings, f, chans) for r in results}
+        sims = {r.label: simulate_as_scored(r.params, r.settings, f, chans) for r in drawn_on(f, results, all_flights)}
         meas = f.select(chans).outputs
         scores = {label: channel_metrics(y, meas, chans) for label, y in sims.items()}
         rows = [[label, name, *(num(s[key][c], ".4f") for c in chans)]
@@ -171,9 +171,24 @@ def verification(results: Sequence[ResultSource], flights: Sequence[FlightData])
     return section("verification", TITLES["verification"], *body)
 
 
-def frequency_response(results: Sequence[ResultSource], flights: Sequence[FlightData]) -> Html:
-    """Flight frequency responses (Welch, conditioned on all sticks) with partial coherence against each model's
-    response, and the CIFER mismatch per on-axis pair."""
+_DRAWN = ("Each model is drawn on the flights it was fitted or validated on, every model on a flight no result "
+          "names (one given with --data); jaxheli report --all-flights draws every model on every flight.")
+"""The verification and frequency-response sections' note on which models they draw on which flight."""
+
+
+def drawn_on(flight: FlightData, results: Sequence[ResultSource], all_flights: bool = False) -> list[ResultSource]:
+    """The results drawn on ``flight``: those fitted or validated on it; all of them with ``all_flights``, or where
+    none names it (a flight the caller added)."""
+    own = [r for r in results if any(_same_file(r.settings.get(k), flight.source)
+                                     for k in ("train_source", "validate_source"))]
+    return list(results) if all_flights or not own else own
+
+
+def frequency_response(
+    results: Sequence[ResultSource], flights: Sequence[FlightData], all_flights: bool = False
+) -> Html:
+    """Flight frequency responses (Welch, conditioned on all sticks) with partial coherence against the response
+    of each model drawn on the flight (:func:`drawn_on`), and the CIFER mismatch per on-axis pair."""
     from ..spectra import estimate_frequency_response, mismatch, model_frequency_response
     from ..plots import PRIMARY_PAIRS
     from ..model import INPUT_NAMES
@@ -185,7 +200,10 @@ def frequency_response(results: Sequence[ResultSource], flights: Sequence[Flight
     body: list[Any] = [tag("p", "Dots: flight estimate (opacity = partial coherence); lines: the models. Mismatch over "
                             "bins with partial coherence >= 0.6: mean magnitude error (dB), mean phase error (deg) and "
                             "the CIFER cost J (<= 100 acceptable, <= 50 excellent).")]
+    if not all_flights:
+        body.append(tag("p", _DRAWN))
     for f in flights:
+        drawn = drawn_on(f, results, all_flights)
         chans = default_outputs(f)
         body.append(tag("h3", f.source))
         try:
@@ -196,7 +214,7 @@ def frequency_response(results: Sequence[ResultSource], flights: Sequence[Flight
         pairs = [(i, o) for i, o in PRIMARY_PAIRS if o in chans and o not in ("u", "v")]
         rows = {p: [f"{p[0]} -> {p[1]}"] for p in pairs}
         models = {r.label: np.asarray(model_frequency_response(r.params, estimate.freq, chans,
-                                                               r.settings.get("g", G_SI))) for r in results}
+                                                               r.settings.get("g", G_SI))) for r in drawn}
         body.append(png_figure(frequency_png(estimate, models, chans, pairs, f"flight against the models on {f.source}"),
                                f"frequency responses on {f.source}: " + ", ".join(models)))
         for model in models.values():
@@ -206,7 +224,7 @@ def frequency_response(results: Sequence[ResultSource], flights: Sequence[Flight
                 bins = int(err["bins"][k, m])
                 rows[(i, o)] += [bins] + [num(err[key][k, m] if bins else None, spec) for key, spec in
                                           (("magnitude_db", ".2f"), ("phase_deg", ".1f"), ("cifer_j", ".1f"))]
-        head = ["pair"] + [h for r in results for h in (f"{r.label} bins", "mag [dB]", "phase [deg]", "J")]
+        head = ["pair"] + [h for r in drawn for h in (f"{r.label} bins", "mag [dB]", "phase [deg]", "J")]
         body.append(table(head, rows.values(), caption=f"flight against model on {f.source} "
                           f"({estimate.averages:.1f} effective Welch averages)"))
     return section("frequency-response", TITLES["frequency-response"], *body)
@@ -341,5 +359,6 @@ def _role(source: str, results: Sequence[ResultSource]) -> Html:
 
 def _same_file(recorded: str | None, source: str) -> bool:
     """Whether a source recorded in a result names the loaded flight (same path, or same file name when the
-    result was made on another machine)."""
-    return recorded is not None and (recorded == source or Path(recorded).name == Path(source).name)
+    result was made on another machine; any of the records of a fit to several, ``a + b``)."""
+    return recorded is not None and any(r == source or Path(r).name == Path(source).name
+                                        for r in recorded.split(" + "))
