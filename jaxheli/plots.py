@@ -85,8 +85,13 @@ def plot_convergence(
 
 
 def _log_panel(ax: Any, xlabel: str, ylabel: str, legend: bool) -> None:
-    """Log-scale y, axis labels, grid and (when ``legend``) a legend on one convergence panel."""
+    """Log-scale y, axis labels, grid and (when ``legend``) a legend on one convergence panel; curves that hardly
+    move get a decade around them, not an axis spanning their rounding errors."""
     ax.set_yscale("log")
+    values = np.concatenate([np.asarray(line.get_ydata(), dtype=float) for line in ax.get_lines()])
+    values = values[np.isfinite(values) & (values > 0)]
+    if values.size and values.max() < 1.01 * values.min():
+        ax.set_ylim(values.min() / 3, values.max() * 3)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.grid(alpha=0.3, which="both")

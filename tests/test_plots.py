@@ -34,3 +34,9 @@ def test_a_polish_without_generations_is_drawn_alone(drawn, tmp_path):
     plots.plot_convergence({}, tmp_path / "c.png", polish={"freq+polish (pearson)": ROUNDS[:1]})
     (polish,) = drawn[0].axes
     assert polish.get_xlabel() == "polish round" and len(polish.get_lines()) == 1
+
+
+def test_a_polish_that_did_not_move_gets_a_readable_axis(drawn, tmp_path):
+    plots.plot_convergence({}, tmp_path / "c.png", polish={"polish": [[0.8137794967375505, 0.8137794967375498]]})
+    low, high = drawn[0].axes[0].get_ylim()
+    assert low < 0.5 and high > 2.0
