@@ -8,12 +8,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from jaxheli.benchmark.independent import independent_trial
 from jaxheli.cost import nmse
 from jaxheli.synth.excitation import Excitation
 from jaxheli.cli.gap import add_diagnose_parser as add_parser
 from jaxheli.effects import plant as augmented, registry as effects
-from jaxheli.gap.diagnose import diagnose, effect_eta, predictions, shared_outputs
-from jaxheli.gap.records import Diagnosis
+from jaxheli.gap.diagnose import diagnose, effect_eta, predictions, ranking_table, shared_outputs
+from jaxheli.gap.records import Attribution, Diagnosis
 from jaxheli.gap.predictor import make_predictor
 from jaxheli.io import save_npz
 from jaxheli.model import PARAM_NAMES, TABLE2
@@ -173,6 +174,38 @@ def test_an_under_fitted_base_model_is_named_not_an_effect():
     assert not any(e.significant for e in d.ranking)
     frozen = diagnose(base, train, validate, joint=False, **OPTIONS).attribution
     assert min(e.lr.p_value for e in frozen.ranking) < 1e-3  # the training likelihood alone claims one
+
+
+def test_an_under_fitted_base_names_no_effect_on_an_independent_flight():
+    """The same failure mode on flights of the independent truth simulator (its own hover model, LQR pilot and
+    sensors; Table 2, inside the default box; no effect injected): a base of 3 PEM steps names no effect."""
+    trial = independent_trial("none", 3, TABLE2, style="doublets", duration=20.0, dt=DT)
+    base = pem(trial.train, max_steps=3, outputs=OUT).theta
+    d = diagnose(base, trial.train, trial.validate, **OPTIONS).attribution
+    assert d.base_refit.under_fitted
+    assert d.verdict.startswith("base model under-fitted")
+    assert not any(e.significant for e in d.ranking), d.verdict
+
+
+def test_a_truth_outside_the_default_box_is_named_as_structure_not_an_effect():
+    """Flights of the independent truth simulator from Table 2 with a heave-to-yaw coupling ``Nw`` = 2 that the
+    authors' box pins at 0 (as it pins Mettler's R-50's 2.8), no effect injected, the base identified by PEM in that
+    box as a user would: the verdict names the base model's structure (``Nw`` freed) and no unmodelled effect."""
+    truth = np.array(TABLE2)
+    truth[PARAM_NAMES.index("Nw")] = 2.0
+    trial = independent_trial("none", 3, truth, style="doublets", duration=20.0, dt=DT)
+    base = pem(trial.train, max_steps=100, outputs=OUT).theta
+    assert base[PARAM_NAMES.index("Nw")] == 0.0
+    d = diagnose(base, trial.train, trial.validate, **OPTIONS)
+    found = d.attribution
+    s = found.structure
+    assert s.significant and "Nw" in s.freed and s.freed["Nw"] > 0.5, s
+    assert "base model structure: " in found.verdict and "Nw freed" in found.verdict, found.verdict
+    assert found.verdict.endswith("no significant effect") and not any(e.significant for e in found.ranking)
+    assert found.final is None
+    assert any(line.lstrip().startswith("(base, physical box)") and "Nw freed" in line for line in ranking_table(d))
+    back = Attribution.from_json(found.to_json()).structure
+    assert back.summary == s.summary and back.shrink_pct == s.shrink_pct and np.array_equal(back.theta, s.theta)
 
 
 def test_shared_outputs_and_bad_channels():

@@ -46,11 +46,10 @@ from ..optim.pem import pem
 from ..synth.excitation import Excitation
 from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
 from ..gap.final_fit import final_fit
-from ..gap.fit_effect import with_reference
-from ..gap.records import Entry, Final, Refit
-from ..gap.ranking import fit_and_score, predictor_pair
-from ..gap.reference import base_refit, theta_box, withhold
-from ..gap.significance import MIN_SHRINK, MIN_Z, shrink_entries, yardstick
+from ..gap.records import Entry, Final, Refit, Structure
+from ..gap.ranking import predictor_pair, staged
+from ..gap.reference import theta_box
+from ..gap.significance import MIN_SHRINK, MIN_Z
 from ..gap.thresholds import THRESHOLDS
 from . import truth as independent_truth
 from .independent import independent_trial
@@ -86,9 +85,14 @@ def _hull(*models: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 BOX = _hull(TABLE2, R50_SI)
-"""``(lower, upper)``, the identification box of every trial: the authors' TREX box widened to hold half to twice each Table 2
-and R-50 parameter (so both classes, perturbed by 30 %, lie inside; ``Nw``, pinned in the TREX box, is
-freed): what a user sets for a class of helicopter, not the truth."""
+"""``(lower, upper)``, the identification box of every trial by default: the authors' TREX box widened to hold half
+to twice each Table 2 and R-50 parameter (so both classes, perturbed by 30 %, lie inside; ``Nw``, pinned in the TREX
+box, is freed): what a user sets for a class of helicopter, not the truth."""
+
+BOXES: dict[str, tuple[np.ndarray, np.ndarray]] = {"hull": BOX, "authors": (LOWER, UPPER)}
+"""Identification boxes of the blind check: :data:`BOX` (``hull``), or the command line's default, the authors' TREX
+box (``authors``), which the R-50 truths leave (``Mu``, ``Mv``, ``Nv`` beyond it, ``Nw`` pinned at 0): there the
+diagnosis must name the base model's structure (:mod:`jaxheli.gap.structure`), not an effect."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -189,17 +193,18 @@ class Trial(NamedTuple):
 
 
 def base_model(train: FlightData, method: str, seed: int, *, pem_steps: int = 100, iterations: int = 1000,
-               outputs: tuple[str, ...] = DEFAULT_OUTPUTS) -> tuple[np.ndarray, dict[str, Any]]:
-    """The base model a user identifies on ``train`` in :data:`BOX` by ``method`` (:data:`BASES`): ``(theta,
-    info)``, ``info`` the method and its run (PEM: ``pem_steps`` LM steps; IWO + polish: ``iterations``
-    generations seeded by ``seed``, then the polish)."""
+               outputs: tuple[str, ...] = DEFAULT_OUTPUTS, box: str = "hull") -> tuple[np.ndarray, dict[str, Any]]:
+    """The base model a user identifies on ``train`` in the box ``box`` (:data:`BOXES`) by ``method``
+    (:data:`BASES`): ``(theta, info)``, ``info`` the method and its run (PEM: ``pem_steps`` LM steps; IWO + polish:
+    ``iterations`` generations seeded by ``seed``, then the polish)."""
+    lower, upper = BOXES[box]
     if method == "pem":
-        ident = pem(train, max_steps=pem_steps, outputs=outputs, lower=BOX[0], upper=BOX[1])
+        ident = pem(train, max_steps=pem_steps, outputs=outputs, lower=lower, upper=upper)
         return np.asarray(ident.theta), {"method": method, "steps": ident.n_steps, "success": ident.success,
                                          "rss": ident.rss}
     if method == "iwo+polish":
-        ident = identify(train, method=method, iterations=iterations, seed=seed, outputs=outputs, lower=BOX[0],
-                         upper=BOX[1], progress=False)
+        ident = identify(train, method=method, iterations=iterations, seed=seed, outputs=outputs, lower=lower,
+                         upper=upper, progress=False)
         return np.asarray(ident.params), {"method": method, "iterations": iterations, "seconds": ident.seconds,
                                           "search_cost": ident.polish["cost_after"],
                                           "polish_objective": ident.polish["objective_after"]}
@@ -236,7 +241,7 @@ def trial_flights(
 def run_trial(
     kind: str, seed: int, *, base: str = "pem", truth: str = "library", duration: float = 30.0, dt: float = 0.05,
     segment: float = 2.0, max_steps: int = 15, pem_steps: int = 100, iterations: int = 1000,
-    min_shrink: float = MIN_SHRINK,
+    min_shrink: float = MIN_SHRINK, box: str = "hull",
 ) -> dict[str, Any]:
     """One blind trial: scenario and injection of ``seed``, flights, base model identified on the training
     flight by ``base`` (:func:`base_model`), joint diagnosis and oracle; the record (verdict, attribution, shrinks,
@@ -245,7 +250,10 @@ def run_trial(
     magnitude is the one the diagnosis reports for the true kind (the oracle's): re-identified on both flights
     where it is the named effect, else its training fit (``estimate``, ``magnitude_error``); beside it the training
     fit's (``estimate_train``, ``magnitude_error_train``) and the oracle's (``oracle_estimate``,
-    ``oracle_magnitude_error``)."""
+    ``oracle_magnitude_error``). The base model is identified, and the diagnosis starts, in ``box``
+    (:data:`BOXES`); the base model's structure is its first hypothesis (:func:`~jaxheli.gap.ranking.staged`)."""
+    if box not in BOXES:
+        raise ValueError(f"blind trial: unknown box {box!r}; boxes are {tuple(BOXES)}")
     where = scenario(seed)
     inj, train, validate, right, facts = trial_flights(truth, kind, seed, where, duration=duration, dt=dt,
                                                        outputs=DEFAULT_OUTPUTS)
@@ -254,23 +262,18 @@ def run_trial(
     if flat:
         inj, train, validate = _restrict(inj, outputs), train.select(outputs), validate.select(outputs)
         facts = {**facts, "dropped_outputs": sorted(flat)}
-    theta, ident = base_model(train, base, seed, pem_steps=pem_steps, iterations=iterations, outputs=outputs)
+    theta, ident = base_model(train, base, seed, pem_steps=pem_steps, iterations=iterations, outputs=outputs,
+                              box=box)
     train_pred, validate_pred = predictor_pair(theta, train, validate, segment=segment)
     *arrays, owner = fx.tried_arrays(fx.ALL, outputs)
     oracle = _oracle_row(inj.kind, inj, *fx.candidate_arrays(fx.ALL, outputs))
-    arrays = [np.vstack([a, o]) for a, o in zip(arrays, oracle)]
-    cand = with_reference(*arrays, pad=len(no_effect(outputs)), shared=fx.nuisance_arrays(outputs))
-    box = theta_box(theta, Bounds(*BOX))
-    scored = fit_and_score(train_pred, validate_pred, theta, cand, max_steps, box, np.r_[owner, len(fx.ALL)],
-                           challenge=len(fx.ALL))
-    rows = len(fx.ALL) + 1
-    credited = yardstick(scored.given, scored.rows)
-    ranking = shrink_entries(list(fx.ALL), outputs, jax.tree.map(lambda a: a[:rows], scored.fit),
-                             credited.take(slice(None, rows)), min_shrink, shared=True)
-    refit = base_refit(scored, outputs, min_shrink)
-    ranking = withhold(ranking, refit)
+    arrays = tuple(np.vstack([a, o]) for a, o in zip(arrays, oracle))
+    stages = staged(train_pred, validate_pred, theta, list(fx.ALL), arrays, np.r_[owner, len(fx.ALL)], max_steps,
+                    min_shrink, theta_box(theta, Bounds(*BOXES[box])))
+    ranking, refit, structure = stages.ranked.entries, stages.refit, stages.structure
+    scored, credited = stages.ranked.scored, stages.ranked.credited
     best = next((e for e in ranking if e.significant), None)
-    final = final_fit(train_pred, validate_pred, best, box) if best is not None else None
+    final = final_fit(train_pred, validate_pred, best, stages.box) if best is not None else None
     top = best.effect if best else "none"
     oracle_z, oracle_stderr = np.asarray(scored.fit.z[-1]), np.asarray(scored.fit.stderr[-1])
     record = {"kind": kind, "seed": int(seed), "truth_sim": truth, **facts, "truth": where.truth,
@@ -281,7 +284,11 @@ def run_trial(
               "oracle_shrink_pct": 100.0 * (1.0 - float(np.mean(scored.rows.gap[-1]) / np.mean(credited.gap[0]))),
               "oracle_evidence_z": (fx.evidence(inj.kind, outputs, oracle_z, oracle_stderr)
                                     if inj.kind != "none" else None),
-              "base": ident, "base_refit": _untheta(refit), "track": float(train_pred.track),
+              "box": box, "base": ident, "base_refit": _untheta(refit),
+              "structure": None if structure is None else _untheta(structure),
+              "structure_named": bool(structure is not None and structure.significant),
+              "recheck": [_untheta(e) for e in stages.recheck],
+              "track": float(train_pred.track),
               "ranking": [_untheta(e) for e in ranking], "final": None if final is None else _untheta(final)}
     if inj.primary is not None:
         entry = next(e for e in ranking if e.effect == inj.kind)
@@ -296,7 +303,7 @@ def run_trial(
     return record
 
 
-def _untheta(result: Entry | Refit | Final) -> dict[str, Any]:
+def _untheta(result: Entry | Refit | Final | Structure) -> dict[str, Any]:
     """``result``'s JSON without its base parameters (a trial's record keeps the sizes, not 40 numbers each)."""
     return {k: v for k, v in result.to_json().items() if k != "theta"}
 
@@ -542,7 +549,7 @@ def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: in
                 "thresholds": {**{f.name: getattr(THRESHOLDS, f.name) for f in dataclasses.fields(THRESHOLDS)
                                   if f.name not in ("protocol", "source")}, "file": THRESHOLDS.source},
                 "base_model": "PEM (every trial) or IWO + polish (the first iwo_seeds) on the contaminated "
-                              "training flight (blind.BOX), never the truth",
+                              "training flight in the box blind.BOXES[box], never the truth",
                 "diagnosis": "joint re-identification (default of jaxheli diagnose)"}
     order = sorted({s for ss in drawn.values() for s in ss})
     trials = ([Trial(k, s) for s in order for k in kinds if s in drawn[k]]

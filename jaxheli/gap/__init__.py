@@ -16,4 +16,5 @@ from .prepare import prepare as prepare
 from .ranking import combine_effects as combine_effects, diagnose_effects as diagnose_effects
 from .ranking import predictor_pair as predictor_pair, rank_effects as rank_effects
 from .records import Attribution as Attribution, Diagnosis as Diagnosis, Entry as Entry, Final as Final
-from .records import Refit as Refit
+from .records import Refit as Refit, Structure as Structure
+from .structure import physical_box as physical_box, structure_hypothesis as structure_hypothesis

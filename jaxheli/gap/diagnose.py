@@ -218,27 +218,41 @@ def plot_before_after(
 
 
 def ranking_table(diagnosis: Diagnosis) -> list[str]:
-    """The ranked effects as text lines: shrink on the validation flight (total with its standard error, and
-    per channel), significance (``*``; ``=`` when tied with another), and first the base model re-fitted
-    alone when the diagnosis re-identified jointly (its shrink of the given base; the effects' shrinks are
-    beyond it)."""
+    """The base model's gap on the validation flight (nmse, total and per channel), then a table of shrinks of
+    that gap (%): the base model re-fitted alone when the diagnosis re-identified jointly (its shrink of the given
+    base; ``U``: under-fitted), its re-fit in the physical ranges (shrink of the better model without an effect;
+    ``S``: significant, the effects below are then ranked beyond it), and the ranked effects (total with its
+    standard error and per channel; ``*`` significant, ``=`` tied with another), and those re-checked beyond the
+    structure (:func:`~jaxheli.gap.ranking.staged`)."""
     names, before, found = diagnosis.outputs, diagnosis.gap_before, diagnosis.attribution
-    head = f"  {'effect':<22}{'shrink %':>9}{'+-':>6}  {'sig':<4}" + "".join(f"{n:>8}" for n in names) + "  fitted"
-    lines = [head, f"  {'(base gap nmse)':<22}{before.total:>9.3g}{'':>6}  {'':<4}"
-             + "".join(f"{before.channel[n]:>8.3g}" for n in names)]
-    refit = found.base_refit
+    lines = [f"  base model's validation gap (nmse): total {before.total:.3g}; "
+             + ", ".join(f"{n} {before.channel[n]:.3g}" for n in names),
+             f"  {'shrink of that gap':<22}{'%':>9}{'+-':>6}  {'sig':<4}" + "".join(f"{n:>8}" for n in names)
+             + "  fitted"]
+    refit, structure = found.base_refit, found.structure
     if refit is not None:
-        after = refit.gap_by_channel
-        lines.append(f"  {'(base re-fitted)':<22}{_num(refit.shrink_pct, '.1f'):>9}"
-                     f"{_num(refit.shrink_se_pct, '.1f'):>6}  {'U' if refit.under_fitted else '':<4}"
-                     + "".join(f"{_num(_pct(before.channel[n], after[n]), '.1f'):>8}" for n in names)
-                     + "  effects below: shrink beyond this")
+        lines.append(_row("(base re-fitted)", refit.shrink_pct, refit.shrink_se_pct, "U" if refit.under_fitted else "",
+                          [_pct(before.channel[n], refit.gap_by_channel[n]) for n in names],
+                          "effects below: shrink beyond this"))
+    if structure is not None:
+        lines.append(_row("(base, physical box)", structure.shrink_pct, structure.shrink_se_pct,
+                          "S" if structure.significant else "",
+                          [_pct(before.channel[n], structure.gap_by_channel[n]) for n in names], structure.summary))
     for e in (*found.ranking, *found.shown[1:]):
         mark = ("=" if e.tied_with else "*") if e.significant else ""
-        lines.append(f"  {e.effect:<22}{_num(e.shrink_pct, '.1f'):>9}{_num(e.shrink_se_pct, '.1f'):>6}"
-                     f"  {mark:<4}" + "".join(f"{_num(e.shrink_by_channel[n], '.1f'):>8}" for n in names)
-                     + f"  {e.fitted.summary}")
+        lines.append(_row(e.effect, e.shrink_pct, e.shrink_se_pct, mark, [e.shrink_by_channel[n] for n in names],
+                          e.fitted.summary))
+    if found.recheck:
+        lines.append("  re-checked beyond the structure, in the physical ranges (significant above only if here too):")
+        lines += [_row(e.effect, e.shrink_pct, e.shrink_se_pct, "*" if e.significant else "",
+                       [e.shrink_by_channel[n] for n in names], e.fitted.summary) for e in found.recheck]
     return lines
+
+
+def _row(label: str, shrink: float, se: float, mark: str, channels: Sequence[float], note: str) -> str:
+    """A line of :func:`ranking_table`."""
+    return (f"  {label:<22}{_num(shrink, '.1f'):>9}{_num(se, '.1f'):>6}  {mark:<4}"
+            + "".join(f"{_num(c, '.1f'):>8}" for c in channels) + f"  {note}")
 
 
 def _pct(before: float, after: float) -> float:
@@ -246,5 +260,8 @@ def _pct(before: float, after: float) -> float:
 
 
 def _num(value: float, fmt: str) -> str:
-    """``value`` formatted, or ``-`` where it is not finite (``null`` in ``diagnosis.json``)."""
-    return format(value, fmt) if np.isfinite(value) else "-"
+    """``value`` formatted, in two significant digits from 1e5 on (a diverged candidate's shrink of -1e160 %), or
+    ``-`` where it is not finite (``null`` in ``diagnosis.json``)."""
+    if not np.isfinite(value):
+        return "-"
+    return format(value, fmt) if abs(value) < 1e5 else format(value, ".2g")

@@ -35,12 +35,13 @@ from ..effects.plant import no_effect
 from .final_fit import final_fit
 from .fit_effect import EffectRows, embed, fit_candidates, score, with_reference
 from .predictor import Predictor, make_predictor, tune_track
-from .records import Attribution, Entry, Refit
+from .records import Attribution, Entry, Refit, Structure
 from .reference import (
     REFERENCE_STEPS, Scored, base_refit, best_rows, carry_reference, challenge as challenge_reference, refit_alone,
     theta_box, withhold,
 )
 from .significance import MIN_SHRINK, HeldOut, shrink_entries, yardstick
+from .structure import physical_box, structure_hypothesis
 
 
 def fit_and_score(
@@ -81,38 +82,93 @@ def fit_and_score(
 
 
 class Ranked(NamedTuple):
-    """Ranking entries, best first, and the base model re-fitted alone (``None``: frozen base)."""
+    """Ranking entries, best first; the base model re-fitted alone (``None``: frozen base); the fits and scores
+    behind them (:func:`fit_and_score`, rows after the candidates' included) and the validation scores they were
+    credited with (:func:`~jaxheli.gap.significance.yardstick`)."""
 
     entries: list[Entry]
     refit: Refit | None
+    scored: Scored
+    credited: HeldOut
 
 
-def _ranked(
+def ranked(
     train: Predictor, validate: Predictor, theta: Float[ArrayLike, "40"], labels: list[str],
     arrays: tuple[np.ndarray, ...], owner: np.ndarray | None, max_steps: int, min_shrink: float, box: Bounds | None,
 ) -> Ranked:
     """Entries of the candidates ``labels`` whose ``(index, start, lower, upper)`` rows are ``arrays``
-    (:func:`~jaxheli.effects.registry.candidate_arrays`, padded rows after them), fitted behind the reference
+    (:func:`~jaxheli.effects.registry.candidate_arrays`, padded rows after them; with ``owner``, several rows per
+    candidate and rows of further candidates after ``labels``', e.g. an oracle's), fitted behind the reference
     (:func:`fit_and_score`) and credited against the better model without an effect."""
     outputs = train.outputs
     shared = box is not None
     cand = with_reference(*arrays, len(no_effect(outputs)), fx.nuisance_arrays(outputs) if shared else None)
     scored = fit_and_score(train, validate, theta, cand, max_steps, box, owner, challenge=len(labels))
     rows = len(labels) + 1
-    credited = yardstick(scored.given, scored.rows).take(slice(None, rows))
-    ranking = shrink_entries(labels, outputs, jax.tree.map(lambda a: a[:rows], scored.fit), credited, min_shrink,
-                             shared)
+    credited = yardstick(scored.given, scored.rows)
+    ranking = shrink_entries(labels, outputs, jax.tree.map(lambda a: a[:rows], scored.fit),
+                             credited.take(slice(None, rows)), min_shrink, shared)
     refit = base_refit(scored, outputs, min_shrink)
-    return Ranked(withhold(ranking, refit), refit)
+    return Ranked(withhold(ranking, refit), refit, scored, credited)
+
+
+class Staged(NamedTuple):
+    """The ranking and the base model's structure (:func:`staged`): ``ranked`` the ranking in the given box (an
+    effect significant only where it stayed so beyond the structure), ``refit`` the given base re-fitted alone in
+    that box (``None``: frozen base), ``structure`` the hypothesis
+    (:func:`~jaxheli.gap.structure.structure_hypothesis`), ``recheck`` the entries of the effects significant in the
+    box ranked again beyond the structure, in the physical ranges (empty when not re-checked), and the ``box`` the
+    ranking kept the base parameters in."""
+
+    ranked: Ranked
+    refit: Refit | None
+    structure: Structure | None
+    recheck: tuple[Entry, ...]
+    box: Bounds | None
+
+
+RECHECK_ROWS = 4
+"""The re-check's candidate rows are padded to a multiple of this, so its solver compiles for few batch shapes."""
+
+
+def staged(
+    train: Predictor, validate: Predictor, theta: Float[ArrayLike, "40"], labels: list[str],
+    arrays: tuple[np.ndarray, ...], owner: np.ndarray, max_steps: int, min_shrink: float, box: Bounds | None,
+) -> Staged:
+    """The candidates ``labels`` (rows ``arrays``, candidate ``owner[r]`` for row ``r``; rows of further candidates
+    after them, e.g. an oracle's, are fitted and scored too) ranked in ``box`` (:func:`ranked`), then, re-identified
+    jointly, the base model's structure as the first hypothesis: its re-fit in the physical ranges. When that re-fit
+    left the box, the effects significant in the box are ranked again from it, in those ranges, and an effect stays
+    significant only where it is in both rankings: a real effect does not hinge on the base model's box, while one
+    that stood in for a pinned or bounded parameter, or for the misfit of a base stuck in another optimum, changes
+    with it (on an effect-free R-50 flight a false lateral saturation in the authors' box became a false
+    roll-attitude bias in the physical ranges)."""
+    first = ranked(train, validate, theta, labels, arrays, owner, max_steps, min_shrink, box)
+    if box is None:
+        return Staged(first, None, None, (), None)
+    cand = with_reference(*arrays, len(no_effect(train.outputs)), fx.nuisance_arrays(train.outputs))
+    hypothesis = structure_hypothesis(train, validate, cand, first.scored, first.credited, box, max_steps, min_shrink)
+    chosen = [c for c, name in enumerate(labels) if any(e.significant and e.effect == name for e in first.entries)]
+    if hypothesis is None or not (hypothesis.freed or hypothesis.beyond) or not chosen:
+        return Staged(first, first.refit, hypothesis, (), box)
+    rows = np.flatnonzero(np.isin(owner, chosen))
+    rows = np.r_[rows, np.full(-len(rows) % RECHECK_ROWS, rows[-1])]
+    again = ranked(train, validate, hypothesis.theta, [labels[c] for c in chosen], tuple(a[rows] for a in arrays),
+                   np.searchsorted(chosen, owner[rows]), max_steps, min_shrink,
+                   theta_box(hypothesis.theta, physical_box(box)))
+    both = {e.effect for e in again.entries if e.significant}
+    entries = [dataclasses.replace(e, significant=e.significant and e.effect in both,
+                                   tied_with=tuple(t for t in e.tied_with if t in both)) for e in first.entries]
+    return Staged(first._replace(entries=entries), first.refit, hypothesis, tuple(again.entries), box)
 
 
 def _rank(
     train: Predictor, validate: Predictor, theta: Float[ArrayLike, "40"], names: Sequence[str], max_steps: int,
     min_shrink: float, shape: tuple[int, int] | None, box: Bounds | None,
-) -> Ranked:
-    """Each of the effects ``names`` fitted on its own, from each of its starts (:func:`_ranked`)."""
+) -> Staged:
+    """Each of the effects ``names`` fitted on its own, from each of its starts (:func:`staged`)."""
     *arrays, owner = fx.tried_arrays(list(names), train.outputs, shape=shape)
-    return _ranked(train, validate, theta, list(names), tuple(arrays), owner, max_steps, min_shrink, box)
+    return staged(train, validate, theta, list(names), tuple(arrays), owner, max_steps, min_shrink, box)
 
 
 def _combine(
@@ -123,8 +179,8 @@ def _combine(
     index, start, lower, upper = fx.candidate_arrays(list(names), train.outputs, combine=True, shape=shape)
     if warm is not None:
         start[:, : len(warm)] = np.clip(warm, lower[:, : len(warm)], upper[:, : len(warm)])
-    return _ranked(train, validate, theta, ["+".join(names)], (index, start, lower, upper), None, max_steps,
-                   min_shrink, box).entries[0]
+    return ranked(train, validate, theta, ["+".join(names)], (index, start, lower, upper), None, max_steps,
+                  min_shrink, box).entries[0]
 
 
 def _warm(ranking: Sequence[Entry], effects: Sequence[str], outputs: tuple[str, ...]) -> np.ndarray:
@@ -154,7 +210,7 @@ def rank_effects(
     pads the batch of fits (:func:`~jaxheli.effects.registry.candidate_arrays`).
     """
     box = theta_box(base_theta, bounds) if joint else None
-    return _rank(train, validate, base_theta, effects, max_steps, min_shrink, shape, box).entries
+    return _rank(train, validate, base_theta, effects, max_steps, min_shrink, shape, box).ranked.entries
 
 
 def combine_effects(
@@ -194,33 +250,45 @@ def diagnose_effects(
     :func:`rank_effects`."""
     shape = fx.joint_shape(effects, train.outputs, top) if top > 1 else None
     box = theta_box(base_theta, bounds) if joint else None
-    ranking, refit = _rank(train, validate, base_theta, effects, max_steps, min_shrink, shape, box)
+    stages = _rank(train, validate, base_theta, effects, max_steps, min_shrink, shape, box)
+    ranking, refit, structure = stages.ranked.entries, stages.refit, stages.structure
     chosen = [e.effect for e in ranking if e.significant][:top]
     combination = (_combine(train, validate, base_theta, chosen, max_steps, min_shrink,
                             _warm(ranking, chosen, train.outputs), shape, box) if len(chosen) > 1 else None)
     best = next((e for e in ranking if e.significant), None)
     final = final_fit(train, validate, best, box) if best is not None and box is not None else None
-    return Attribution(tuple(ranking), combination, refit, verdict(ranking, refit), final, float(train.track))
+    return Attribution(tuple(ranking), combination, refit, verdict(ranking, refit, structure, stages.recheck), final,
+                       float(train.track), structure, stages.recheck)
 
 
-def verdict(ranking: Sequence[Entry], refit: Refit | None = None) -> str:
+def verdict(
+    ranking: Sequence[Entry], refit: Refit | None = None, structure: Structure | None = None,
+    recheck: Sequence[Entry] = (),
+) -> str:
     """The best significant effect in words (with the effects tied with it), or ``"no significant effect"``;
+    before it, when significant, the base model's ``structure`` (:func:`~jaxheli.gap.structure.structure_hypothesis`:
+    what left the box, and its shrink), the effect's shrink then the one beyond it (its entry in ``recheck``);
     first, when ``refit`` (:func:`~jaxheli.gap.reference.base_refit`) finds the base model under-fitted, by how
     much, and only that when the re-fitted base is not settled."""
     best = [e for e in ranking if e.significant]
+    named = structure is not None and structure.significant
     if not best:
         text = "no significant effect"
     else:
-        e = best[0]
-        tie = f", tied with {' and '.join(e.tied_with)}" if e.tied_with else ""
+        e = next((r for r in recheck if r.effect == best[0].effect), best[0]) if named else best[0]
+        tie = f", tied with {' and '.join(best[0].tied_with)}" if best[0].tied_with else ""
         text = f"{e.effect} ({e.fitted.summary}){tie}: gap shrinks {e.shrink_pct:.1f} % on the validation flight"
+    if named:
+        text = (f"base model structure: {structure.summary}: re-fitting it in the physical ranges shrinks the "
+                f"validation gap {structure.shrink_pct:.1f} +- {structure.shrink_se_pct:.1f} %; beyond that, {text}")
     if refit is None:
         return text
     shrink = f"re-fitting it alone shrinks the validation gap {refit.shrink_pct:.1f} +- {refit.shrink_se_pct:.1f} %"
     if not refit.settled:
         return (f"base model under-fitted: {shrink} and it is still converging (training RSS down "
                 f"{refit.progress_pct:.1f} % over the last {refit.steps} steps): re-identify the base model "
-                f"(or raise max_steps) before attributing effects")
+                f"(jaxheli identify --method pem --train FILE, or the diagnosis's re-fitted base, refit.theta), "
+                f"or raise max_steps (--max-steps), before attributing effects")
     if refit.under_fitted:
         return f"base model under-fitted: {shrink}; beyond that, {text}"
     return text

@@ -114,6 +114,34 @@ class Refit:
 
 
 @dataclasses.dataclass(frozen=True)
+class Structure(_Flat):
+    """The base model's structure as a hypothesis (:func:`~jaxheli.gap.structure.structure_hypothesis`): the
+    reference re-fitted alone in the physical ranges, its held-out shrink (%) of the yardstick's gap with standard
+    error, whether it is ``significant``, both gaps (channel mean) and its gap per channel; the pinned parameters it
+    ``freed`` and those ``beyond`` the box (values by name), with the bound each ``crossed``; the re-fitted
+    ``theta[40]`` and nuisance values."""
+
+    shrink_pct: float
+    shrink_se_pct: float
+    significant: bool
+    gap_base: float
+    gap: float
+    gap_by_channel: Mapping[str, float]
+    freed: Mapping[str, float]
+    beyond: Mapping[str, float]
+    crossed: Mapping[str, float]
+    theta: Theta
+    nuisance: Mapping[str, float]
+
+    @property
+    def summary(self) -> str:
+        """What moved, in words: ``"Nw freed (2.71), Mu beyond its bound (-0.18 past -0.1)"``."""
+        moved = [f"{n} freed ({v:.3g})" for n, v in self.freed.items()]
+        moved += [f"{n} beyond its bound ({v:.3g} past {self.crossed[n]:.3g})" for n, v in self.beyond.items()]
+        return ", ".join(moved) or "no parameter left the box"
+
+
+@dataclasses.dataclass(frozen=True)
 class Final:
     """The named effect re-identified with the base model on both flights (:func:`~jaxheli.gap.final_fit.final_fit`):
     its fit, the training plus validation RSS, LM ``steps``, the base parameters ``theta[40]`` and nuisance values
@@ -141,7 +169,10 @@ class Attribution:
     """Which effect (:func:`~jaxheli.gap.ranking.diagnose_effects`): the ranking, best first; the joint fit of
     the significant effects (``None`` unless two or more); the base re-fitted alone (``None``: frozen base); a
     sentence; the best significant effect re-identified on both flights (``None`` without one, or frozen); the
-    restart filter's level every fit used."""
+    restart filter's level every fit used; the base model's structure as a hypothesis (``None``: frozen base, or
+    a box that already holds the physical ranges); the effects significant in the box ranked again beyond the
+    structure, in the physical ranges (``recheck``, :func:`~jaxheli.gap.ranking.staged`: an effect stays significant
+    only where it is in both)."""
 
     ranking: tuple[Entry, ...]
     combination: Entry | None
@@ -149,6 +180,8 @@ class Attribution:
     verdict: str
     final: Final | None
     track: float
+    structure: Structure | None = None
+    recheck: tuple[Entry, ...] = ()
 
     @property
     def shown(self) -> tuple[Entry, ...]:
@@ -156,17 +189,20 @@ class Attribution:
         return (self.ranking[0],) + (() if self.combination is None else (self.combination,))
 
     def to_json(self) -> dict[str, Any]:
-        """``{ranking, combination, base_refit, verdict, final, track}``."""
+        """``{ranking, combination, base_refit, structure, recheck, verdict, final, track}``."""
         return {"ranking": [e.to_json() for e in self.ranking], "combination": _json(self.combination),
-                "base_refit": _json(self.base_refit) or {"joint": False}, "verdict": self.verdict,
-                "final": _json(self.final), "track": self.track}
+                "base_refit": _json(self.base_refit) or {"joint": False}, "structure": _json(self.structure),
+                "recheck": [e.to_json() for e in self.recheck], "verdict": self.verdict, "final": _json(self.final),
+                "track": self.track}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Attribution:
         """The inverse of :meth:`to_json`."""
         return _read(cls, data, ranking=tuple(map(Entry.from_json, data["ranking"])),
                      combination=_maybe(Entry.from_json, data["combination"]),
-                     base_refit=Refit.from_json(data["base_refit"]), final=_maybe(Final.from_json, data["final"]))
+                     base_refit=Refit.from_json(data["base_refit"]), final=_maybe(Final.from_json, data["final"]),
+                     structure=_maybe(Structure.from_json, data.get("structure")),
+                     recheck=tuple(map(Entry.from_json, data.get("recheck", ()))))
 
 
 @dataclasses.dataclass(frozen=True)

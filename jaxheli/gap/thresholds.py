@@ -50,6 +50,7 @@ class Thresholds:
     tie_sigma: float
     settled_pct: float
     start_tie_pct: float
+    left_box: float
     protocol: Protocol
     source: str
 
