@@ -78,7 +78,7 @@ def test_summary_arithmetic_and_table():
          "shrink_pct": 1.0, "oracle_shrink_pct": 4.0, "oracle_evidence_z": 9.0, "oracle_magnitude_error": 0.6,
          "magnitude_error_train": 0.7, "detectable": False},
         {"kind": "none", "top": "none", "correct": True},
-        {"kind": "none", "top": "none", "correct": True},
+        {"kind": "none", "top": "none", "correct": True, "structure_named": True},
         {"kind": "none", "top": "process_noise", "correct": False},
     ]
     s = summarise(records)
@@ -95,7 +95,8 @@ def test_summary_arithmetic_and_table():
     assert row["oracle_magnitude_error_median_identifiable"] == pytest.approx(0.05)
     assert row["train_magnitude_error_median_detectable"] == pytest.approx(0.3)
     assert s["false_positive_pct"] == pytest.approx(100 / 3)
-    assert "| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 1 | 100 | 100 | 10.0 % | 20.0 % | 5.0 % | 85.0 |" in markdown(s)
+    assert s["kinds"]["none"]["structure_pct"] == pytest.approx(100 / 3) and row["structure_pct"] == 0.0
+    assert "| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 1 | 100 | 100 | 10.0 % | 20.0 % | 5.0 % | 85.0 | 0 |" in markdown(s)
 
 
 def test_other_base_methods_are_summarised_beside_pem_on_the_same_trials():

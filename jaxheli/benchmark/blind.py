@@ -461,12 +461,14 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
     """Per kind: trials, top-1 % and in-tie-set %, over all trials, over the detectable ones (:func:`detectable`)
     and over the identifiable ones (:func:`identifiable`), with the median relative
     magnitude error of each subset (the diagnosis's, its training fit's and the oracle's), and the median shrink
-    vs oracle % (detectable); plus the false-positive % on effect-free flights."""
+    vs oracle % (detectable), and the % of trials whose verdict names the base model's structure
+    (:mod:`jaxheli.gap.structure`); plus the false-positive % on effect-free flights."""
     table = {}
     for kind in dict.fromkeys(r["kind"] for r in records):
         rs = [r for r in records if r["kind"] == kind]
         row = {"trials": len(rs), "top1_pct": _pct([r["correct"] for r in rs]),
-               "in_tie_pct": _pct([r.get("in_tie", r["correct"]) for r in rs])}
+               "in_tie_pct": _pct([r.get("in_tie", r["correct"]) for r in rs]),
+               "structure_pct": _pct([r.get("structure_named", False) for r in rs])}
         if kind != "none":
             seen = [r for r in rs if detectable(r)]
             row.update(_subset(seen, "detectable"))
@@ -486,8 +488,8 @@ def markdown(summary: dict[str, Any]) -> str:
              "top-1 % detectable | in tie % detectable | median magnitude error (detectable) | "
              f"identifiable (oracle z >= {MIN_Z:g}) | top-1 % identifiable | in tie % identifiable | "
              "median magnitude error (identifiable) | training fit's (identifiable) | oracle's (identifiable) | "
-             "median shrink vs oracle % |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "median shrink vs oracle % | base structure named % |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def cell(value: float | None, fmt: str) -> str:
         return "-" if value is None else format(value, fmt)
@@ -502,7 +504,7 @@ def markdown(summary: dict[str, Any]) -> str:
         lines.append(f"| {kind} | {row['trials']} | {cell(row['top1_pct'], '.0f')} | {cell(row['in_tie_pct'], '.0f')}"
                      f"{subsets} | {error(row.get('train_magnitude_error_median_identifiable'))}"
                      f" | {error(row.get('oracle_magnitude_error_median_identifiable'))}"
-                     f" | {cell(row.get('shrink_vs_oracle_pct'), '.1f')} |")
+                     f" | {cell(row.get('shrink_vs_oracle_pct'), '.1f')} | {cell(row.get('structure_pct'), '.0f')} |")
     lines.append(f"\nFalse positives on effect-free flights: {cell(summary['false_positive_pct'], '.0f')} %")
     for method, both in summary.get("bases", {}).items():
         lines.append(f"\n### Base model by {method} against PEM, on the same trials (seeds {both['seeds']})\n")
