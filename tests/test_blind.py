@@ -189,17 +189,17 @@ def test_validation_flight_differs_from_training_flight():
     assert train.metadata["effect"] == validate.metadata["effect"]
 
 
-def test_small_blind_run_attributes_saturation_and_clears_control():
+def test_small_blind_run_attributes_saturation():
     """Identified base (PEM on the contaminated flight), joint diagnosis: a lat saturation at 0.15 stick is
-    named with its size, the control flight is cleared."""
-    records = run_blind([("control_saturation", 72), ("none", 72)], duration=20.0, max_steps=15, pem_steps=100)
-    saturation, control = records
+    named with its size, and stays named beyond the base model's structure (effect-free flights are cleared in
+    ``tests/test_diagnose.py``: clean, under-fitted base, truth outside the box)."""
+    (saturation,) = run_blind([("control_saturation", 72)], duration=20.0, max_steps=15, pem_steps=100)
     assert saturation["truth"] == "table2" and saturation["strength"] == 3.0 and saturation["base"]["method"] == "pem"
     assert saturation["top"] == "control_saturation" and saturation["correct"] and saturation["in_tie"]
     assert saturation["magnitude_error"] < 0.25 and saturation["oracle_shrink_pct"] > 10
-    assert saturation["oracle_evidence_z"] >= 1.0 and control["oracle_evidence_z"] is None
-    assert control["top"] == "none" and control["correct"]
-    assert all(len(r["ranking"]) == 8 for r in records)
+    assert saturation["oracle_evidence_z"] >= 1.0
+    assert len(saturation["ranking"]) == 8 and saturation["box"] == "hull"
+    assert all(e["effect"] == "control_saturation" for e in saturation["recheck"] if e["significant"])
 
 
 def _exited(pid: int) -> bool:
