@@ -83,13 +83,14 @@ def fit_and_score(
 
 class Ranked(NamedTuple):
     """Ranking entries, best first; the base model re-fitted alone (``None``: frozen base); the fits and scores
-    behind them (:func:`fit_and_score`, rows after the candidates' included) and the validation scores they were
-    credited with (:func:`~jaxheli.gap.significance.yardstick`)."""
+    behind them (:func:`fit_and_score`, rows after the candidates' included), the validation scores they were
+    credited with (:func:`~jaxheli.gap.significance.yardstick`) and the reference's row as it started."""
 
     entries: list[Entry]
     refit: Refit | None
     scored: Scored
     credited: HeldOut
+    reference: EffectRows
 
 
 def ranked(
@@ -109,7 +110,7 @@ def ranked(
     ranking = shrink_entries(labels, outputs, jax.tree.map(lambda a: a[:rows], scored.fit),
                              credited.take(slice(None, rows)), min_shrink, shared)
     refit = base_refit(scored, outputs, min_shrink)
-    return Ranked(withhold(ranking, refit), refit, scored, credited)
+    return Ranked(withhold(ranking, refit), refit, scored, credited, jax.tree.map(lambda a: a[:1], cand))
 
 
 class Staged(NamedTuple):
@@ -146,8 +147,8 @@ def staged(
     first = ranked(train, validate, theta, labels, arrays, owner, max_steps, min_shrink, box)
     if box is None:
         return Staged(first, None, None, (), None)
-    cand = with_reference(*arrays, len(no_effect(train.outputs)), fx.nuisance_arrays(train.outputs))
-    hypothesis = structure_hypothesis(train, validate, cand, first.scored, first.credited, box, max_steps, min_shrink)
+    hypothesis = structure_hypothesis(train, validate, first.reference, first.scored, first.credited, box, max_steps,
+                                      min_shrink)
     chosen = [c for c, name in enumerate(labels) if any(e.significant and e.effect == name for e in first.entries)]
     if hypothesis is None or not (hypothesis.freed or hypothesis.beyond) or not chosen:
         return Staged(first, first.refit, hypothesis, (), box)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import dataclasses
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -43,10 +42,10 @@ def physical_box(box: Bounds) -> Bounds | None:
 
 
 def structure_hypothesis(
-    train: Predictor, validate: Predictor, cand: EffectRows, scored: Scored, credited: HeldOut, box: Bounds,
+    train: Predictor, validate: Predictor, reference: EffectRows, scored: Scored, credited: HeldOut, box: Bounds,
     max_steps: int, min_shrink: float,
 ) -> Structure | None:
-    """The reference of ``scored`` (row 0 of ``cand``, re-identified jointly in ``box``) re-fitted alone in
+    """The reference of ``scored`` (its one row ``reference``, re-identified jointly in ``box``) re-fitted alone in
     :func:`physical_box` (the reference's budget, :data:`~jaxheli.gap.reference.REFERENCE_STEPS` times
     ``max_steps``) and scored against ``credited``'s row 0, the yardstick (:class:`~jaxheli.gap.records.Structure`);
     ``None`` when ``box`` already holds the physical ranges."""
@@ -55,7 +54,7 @@ def structure_hypothesis(
         return None
     outputs = train.outputs
     base = jnp.asarray(no_effect(outputs))
-    reference = dataclasses.replace(jax.tree.map(lambda a: a[:1], cand), start=scored.fit.z[:1])
+    reference = dataclasses.replace(reference, start=scored.fit.z[:1])
     fit = refit_alone(train, scored.fit.theta[0], reference, REFERENCE_STEPS * max_steps, wide)
     gap, energy = (np.asarray(a)[0] for a in score(validate, fit.theta, embed(base, reference.index[0],
                                                                                  fit.z[0])[None]))
