@@ -40,12 +40,12 @@ def measure(
     Candidate evaluations per second (best of ``repeats``) for each dtype (``"float32"``, ``"float64"``),
     flight length ``samples`` and population size ``sizes``; seconds per IWO generation, timed over
     ``generations`` (0: skip); the paper's experiment, ``trials`` x ``experiment_iterations`` generations
-    (0: skip), on the flight file ``experiment_data`` (default: flight A from the shared data if present, else
-    a synthetic 8590-sample flight; with ``quick`` the shortest synthetic flight of ``samples``); the time to a
-    model of each of ``model_methods`` (:func:`~jaxheli.benchmark.time_to_model.time_to_model`, ``model_iterations``
-    generations, ``pem_steps`` PEM steps) on flight A prepared as the paper comparison does (with ``quick``, or
-    without the shared data: the experiment's flight). ``settings`` is recorded as the result's ``settings``
-    (default: these arguments).
+    (0: skip), on the flight ``experiment_data`` (``FILE[:t0-t1]``; default: flight A from the shared data if
+    present, else a synthetic 8590-sample flight; with ``quick`` the shortest synthetic flight of ``samples``); the
+    time to a model of each of ``model_methods`` (:func:`~jaxheli.benchmark.time_to_model.time_to_model`,
+    ``model_iterations`` generations, ``pem_steps`` PEM steps) on flight A prepared as the paper comparison does
+    (with ``quick``, or without the shared data: the experiment's flight). ``settings`` is recorded as the
+    result's ``settings`` (default: these arguments).
     """
     import jax
     import jax.numpy as jnp
@@ -144,12 +144,13 @@ def _experiment(flight: FlightData, trials: int, iterations: int, baselines: dic
 
 
 def _experiment_flight(spec: str | None) -> FlightData:
+    from ..flights import load_flight
     from ..io import load
     from ..io.paths import data_file
     from .throughput import CHANNELS, bench_flight
 
     if spec:
-        return load(spec).select(CHANNELS)
+        return load_flight(spec).select(CHANNELS)
     try:
         return load(data_file("trex550/Data_graphready.mat")).select(CHANNELS)
     except FileNotFoundError:

@@ -13,10 +13,11 @@ from __future__ import annotations
 import argparse
 import sys
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import NoReturn, TextIO
 
+from ._options import adopt_old_forms
 from .bench import add_bench_parser, add_trials_scaling_parser
 from .gap import add_blind_parser, add_check_parser, add_diagnose_parser, add_localise_parser
 from .identify import add_evaluate_parser, add_identify_parser, add_synth_parser
@@ -26,7 +27,14 @@ from .verify import add_verify_parser
 
 
 class _Parser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line and a pointer to ``--help``, without the usage text."""
+    """An argument parser whose errors are one line and a pointer to ``--help``, without the usage text, and which
+    reads the deprecated forms of its options as their new ones (:func:`~jaxheli.cli._options.adopt_old_forms`)."""
+
+    def parse_known_args(self, args: Sequence[str] | None = None,
+                         namespace: argparse.Namespace | None = None) -> tuple[argparse.Namespace, list[str]]:
+        namespace, extras = super().parse_known_args(args, namespace)
+        adopt_old_forms(self, namespace)
+        return namespace, extras
 
     def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {message}\nsee {self.prog} --help\n")

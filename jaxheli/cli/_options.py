@@ -1,16 +1,96 @@
-"""Options several commands share: how flights are read (``--strict/--no-strict``, ``--missing-inputs``),
-the channel list ``--outputs`` and the simulation options ``--hold``, ``--g`` (m/s^2) and ``--segment`` (s),
-with their conversion to library arguments."""
+"""Options several commands share: the flights a command reads (``--data FILE[:t0-t1]``, the one grammar of
+every command, and the old forms it replaced), how they are read (``--strict/--no-strict``,
+``--missing-inputs``), the channel list ``--outputs`` and the simulation options ``--hold``, ``--g`` (m/s^2)
+and ``--segment`` (s), with their conversion to library arguments."""
 
 from __future__ import annotations
 
 import argparse
 import json
 import sys
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 from ..data.flight import FlightData
 from ..flights import load_flight
+
+FLIGHT = "FILE[:t0-t1]"
+"""How every option that names a flight shows it: a file, optionally cut to a window (s)."""
+
+FLIGHT_HELP = ("a flight file (.mat .csv .npz .px4log .bin .ulg, a 'jaxheli prepare' NPZ too) or 'default' (the "
+               "embedded synthetic flight); FILE:t0-t1 keeps t0 <= t <= t1 s of it (either end may be left out)")
+"""What every flight option's help says after the flight's role."""
+
+
+class _OneFlight(argparse.Action):
+    """Store the one flight an option names; a second one is an error rather than silently the one kept."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
+                 option_string: str | None = None) -> None:
+        if getattr(namespace, self.dest, None) is not None:
+            raise argparse.ArgumentError(self, "names one flight; given twice")
+        setattr(namespace, self.dest, values)
+
+
+class OldForm(argparse.Action):
+    """A deprecated way of giving an option, left out of ``--help``: its value waits under its own name until the
+    whole command line is read, then :func:`adopt_old_forms` hands it to ``adopt``, which writes it where the new
+    form puts it. ``old`` and ``new`` name the two forms in the note (``{prog}`` in ``old``: the command)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, *, old: str, new: str,
+                 adopt: Callable[[argparse.Namespace, str], None], **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, **{**kwargs, "default": argparse.SUPPRESS, "help": argparse.SUPPRESS})
+        self.old, self.new, self.adopt = old, new, adopt
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
+                 option_string: str | None = None) -> None:
+        setattr(namespace, self.dest, values)
+
+
+def adopt_old_forms(parser: argparse.ArgumentParser, namespace: argparse.Namespace) -> None:
+    """Rewrite each old form on ``parser``'s command line (:class:`OldForm`) as its new form in ``namespace``, in
+    the order the parser defines them, with one line on stderr per form: ``PROG: note: 'OLD' is deprecated; use
+    NEW``. A value the new form cannot take is an error of the parser."""
+    for action in parser._actions:
+        if isinstance(action, OldForm) and action.dest in vars(namespace):
+            old = action.old.format(prog=parser.prog)
+            try:
+                action.adopt(namespace, vars(namespace).pop(action.dest))
+            except ValueError as err:
+                parser.error(f"{old}: {err}")
+            print(f"{parser.prog}: note: '{old}' is deprecated; use {action.new}", file=sys.stderr)
+
+
+def adopt_as_data(namespace: argparse.Namespace, spec: str) -> None:
+    """An old form's flight as ``--data`` (:class:`OldForm`'s ``adopt``); ``ValueError`` when both name one."""
+    if namespace.data is not None:
+        raise ValueError(f"give the flight once, as --data (not also {spec!r})")
+    namespace.data = spec
+
+
+def add_data_option(p: argparse.ArgumentParser, role: str, *, aliases: Sequence[str] = (), several: bool = False,
+                    required: bool = False, positional_form: bool = False) -> None:
+    """Add ``--data FILE[:t0-t1]``, the flights a command reads, with ``role`` (what they are for) before the
+    common help. ``several``: one or more after each ``--data``, which may be repeated (a list, ``None`` when
+    absent); else one flight, given once (``None`` when absent). ``aliases``: other names of the same option
+    (e.g. ``--train``). ``positional_form``: the command once took the flight as a positional ``FILE``, still
+    read (then ``--data`` or ``FILE`` is required, not both) with a deprecation note."""
+    kind = {"nargs": "+", "action": "extend"} if several else {"action": _OneFlight}
+    text = f"{role}: {FLIGHT_HELP}" + ("; several: list them after --data, or repeat it" if several else "")
+    group = p.add_mutually_exclusive_group(required=True) if positional_form else p
+    group.add_argument("--data", *aliases, dest="data", default=None, required=required and not positional_form,
+                       metavar=FLIGHT, help=text + (" (required)" if required else ""), **kind)
+    if positional_form:
+        group.add_argument("old_file", nargs="?", metavar="FILE", action=OldForm, old="{prog} FILE",
+                           new="--data FILE", adopt=adopt_as_data)
+
+
+def add_flight_option(p: argparse.ArgumentParser, name: str, role: str, *, required: bool = False) -> None:
+    """Add an option ``name FILE[:t0-t1]`` for one flight in a role of its own (e.g. ``--validate``), read like
+    ``--data``."""
+    p.add_argument(name, default=None, required=required, action=_OneFlight, metavar=FLIGHT,
+                   help=f"{role}: {FLIGHT_HELP}" + (" (required)" if required else ""))
 
 
 def add_load_options(p: argparse.ArgumentParser) -> None:

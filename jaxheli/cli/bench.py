@@ -7,6 +7,8 @@ import json
 import os
 from pathlib import Path
 
+from ._options import OldForm, adopt_as_data, add_data_option
+
 
 def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``bench`` on the ``jaxheli`` command line."""
@@ -25,9 +27,10 @@ def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     p.add_argument("--generations", type=int, default=10, help="IWO generations timed per setting (0: skip)")
     p.add_argument("--experiment-iterations", type=int, default=1000, help="paper experiment generations (0: skip)")
     p.add_argument("--trials", type=int, default=10, help="paper experiment trials")
-    p.add_argument("--experiment-data", default=None,
-                   help="flight for the paper experiment (default: flight A from the shared data if present, "
-                   "else a synthetic 8590-sample flight)")
+    add_data_option(p, "the flight of the paper experiment (default: flight A from the shared data if present, "
+                       "else a synthetic 8590-sample flight)")
+    p.add_argument("--experiment-data", action=OldForm, old="--experiment-data FILE", new="--data FILE",
+                   adopt=adopt_as_data)
     p.add_argument("--host-devices", type=int, default=None,
                    help="split the CPU into this many XLA devices (default: the CPU's cores)")
     p.add_argument("--model-methods", nargs="*", default=["pem", "iwo+polish"],
@@ -77,7 +80,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             setattr(args, key, value)
     result = measure(sizes=args.sizes, samples=args.samples, dtypes=args.dtypes, repeats=args.repeats,
                      generations=args.generations, experiment_iterations=args.experiment_iterations,
-                     trials=args.trials, experiment_data=args.experiment_data, model_methods=args.model_methods,
+                     trials=args.trials, experiment_data=args.data, model_methods=args.model_methods,
                      model_iterations=args.model_iterations, pem_steps=args.pem_steps, quick=args.quick,
                      settings={k: v for k, v in vars(args).items() if k != "func"})
     paths = write_bench(result, args.out)

@@ -16,13 +16,15 @@ from ..gap.diagnose import diagnose, ranking_table, write_diagnosis
 from ..gap.significance import MIN_SHRINK
 from ..gap.prepare import prepare
 from ..model import G_SI
-from ._options import add_load_options, add_sim_options, finding_line, outputs, read_flight, sim_options
+from ._options import (add_data_option, add_flight_option, add_load_options, add_sim_options, finding_line, outputs,
+                       read_flight, sim_options)
 
 
 def add_check_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register ``jaxheli check FILE --out DIR`` on the CLI's sub-command parsers."""
+    """Register ``jaxheli check --data FILE[:t0-t1] --out DIR`` on the CLI's sub-command parsers (the old
+    ``jaxheli check FILE`` still read)."""
     p = subparsers.add_parser("check", help="data-consistency check of a flight (kinematics, velocity frame, biases)")
-    p.add_argument("file", metavar="FILE", help="flight file (.mat .csv .npz .px4log .bin .ulg) or 'default'")
+    add_data_option(p, "the flight checked", required=True, positional_form=True)
     p.add_argument("--out", default="jaxheli-check", help="output folder (consistency.json, consistency.png)")
     p.add_argument("--max-travel", type=float, default=MAX_TRAVEL_M,
                    help=f"plausible net displacement of the record, m (default {MAX_TRAVEL_M:g}: a hover test)")
@@ -32,10 +34,10 @@ def add_check_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
 
 
 def add_localise_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register ``jaxheli localise --model M --data FILE --out DIR`` on the CLI's sub-command parsers."""
+    """Register ``jaxheli localise --model M --data FILE[:t0-t1] --out DIR`` on the CLI's sub-command parsers."""
     p = subparsers.add_parser("localise", help="where a model misses a flight: by channel, band, time window, lag")
     p.add_argument("--model", required=True, help="result.json / parameters JSON, or a named set: table2")
-    p.add_argument("--data", default=DEFAULT_DATA, help="flight file or 'default'")
+    add_data_option(p, f"the flight the model is compared with (default: {DEFAULT_DATA})")
     p.add_argument("--x0", choices=("estimate", "zero", "measured"), default="estimate", help="initial state")
     p.add_argument("--window", type=float, default=5.0, help="time window, s (default 5)")
     p.add_argument("--max-lag", type=float, default=1.0, help="largest input-residual lag, s (default 1)")
@@ -47,13 +49,12 @@ def add_localise_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
 
 
 def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register ``jaxheli diagnose --model M --train FILE --validate FILE --out DIR`` on the CLI's sub-command
-    parsers."""
+    """Register ``jaxheli diagnose --model M --data FILE[:t0-t1] --validate FILE[:t0-t1] --out DIR`` on the CLI's
+    sub-command parsers (``--train`` the role name of ``--data``)."""
     p = subparsers.add_parser("diagnose", help="which unmodelled effect explains a model's gap, and how far it shrinks")
     p.add_argument("--model", required=True, help="result.json / parameters JSON, or a named set: table2")
-    p.add_argument("--train", required=True,
-                   help="flight the effects are fitted on (file, a 'jaxheli prepare' NPZ too, or 'default')")
-    p.add_argument("--validate", required=True, help="held-out flight the shrink is measured on")
+    add_data_option(p, "the training flight, the effects are fitted on", aliases=("--train",), required=True)
+    add_flight_option(p, "--validate", "the held-out flight the shrink is measured on", required=True)
     p.add_argument("--out", default="jaxheli-diagnose", help="output folder (diagnosis.json, consistency.json, PNGs)")
     p.add_argument("--outputs", default=None, help="comma-separated channels (default: those both flights share)")
     p.add_argument("--effects", default=",".join(fx.ALL),
@@ -118,7 +119,7 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
-    flight = read_flight(args.file, args)
+    flight = read_flight(args.data, args)
     findings = check(flight, args.max_travel)
     print(f"consistency of {flight.source} ({flight.n_samples} samples, dt {flight.dt:.4g} s); * = significant")
     for f in findings:
@@ -129,7 +130,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_localise(args: argparse.Namespace) -> int:
-    flight = read_flight(args.data, args)
+    flight = read_flight(args.data or DEFAULT_DATA, args)
     theta = resolve_params(args.model)
     report, _ = localise_model(
         theta, flight, outputs=outputs(args.outputs), x0=args.x0,
@@ -156,7 +157,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     if unknown or not chosen:
         raise SystemExit(f"jaxheli diagnose: --effects: unknown effect(s) {unknown}; candidates are {fx.ALL}")
     theta = resolve_params(args.model)
-    train = prepare(read_flight(args.train, args), correct_data=args.correct, trim_samples=args.train_trim,
+    train = prepare(read_flight(args.data, args), correct_data=args.correct, trim_samples=args.train_trim,
                     lowpass_hz=args.train_lowpass, dt=args.train_dt)
     validate = prepare(read_flight(args.validate, args), correct_data=args.correct)
     diagnosis = diagnose(

@@ -10,7 +10,8 @@ from ..cost import SEARCH_COSTS
 from ..flights import DEFAULT_DATA
 from ..identify import METHODS
 from ..optim.polish import POLISH_OBJECTIVES
-from ._options import add_load_options, add_sim_options, outputs, read_flight, sim_options
+from ._options import (add_data_option, add_flight_option, add_load_options, add_sim_options, outputs, read_flight,
+                       sim_options)
 from .verify import print_modes, print_verification
 
 
@@ -22,11 +23,9 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                    help="engine (default iwo+freq+polish: IWO, its best starting the frequency fit, then the "
                         "polish); freq: frequency responses fitted on Tischler's cost J (CIFER); freq+polish: then "
                         "the time-domain polish")
-    p.add_argument("--train", nargs="+", default=[DEFAULT_DATA], metavar="FILE[:t0-t1]",
-                   help="training flight file(s) (a 'jaxheli prepare' NPZ too) or 'default' (the embedded flight), "
-                        "each optionally cut to a window t0-t1 s; several records are fitted at once (each its own "
-                        "initial state, costs add)")
-    p.add_argument("--validate", default=None, metavar="FILE[:t0-t1]", help="validation flight file (optional)")
+    add_data_option(p, f"the training flight(s), several fitted at once, each its own initial state, costs added "
+                       f"(default: {DEFAULT_DATA})", aliases=("--train",), several=True)
+    add_flight_option(p, "--validate", "the validation flight (optional)")
     p.add_argument("--out", default="jaxheli-result", help="output folder (result.json, result.npz, PNGs)")
     p.add_argument("--iterations", type=int, default=1000, help="IWO / GA generations (default 1000, the paper)")
     p.add_argument("--trials", type=int, default=1, help="independent trials for 95%% intervals (the paper: 10)")
@@ -64,7 +63,7 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     """Register ``evaluate`` on the ``jaxheli`` command line."""
     p = subparsers.add_parser("evaluate", help="score a model on a flight (Pearson, TIC, RMSE, fit %%, paper cost)")
     p.add_argument("--model", required=True, help="result.json / parameters JSON, or a named set: table2")
-    p.add_argument("--data", default=DEFAULT_DATA, help="flight file (.mat .csv .npz .px4log .bin .ulg) or 'default'")
+    add_data_option(p, f"the flight scored (default: {DEFAULT_DATA})")
     p.add_argument("--x0", choices=("estimate", "zero", "measured"), default="estimate",
                    help="initial state: least-squares estimate (default, as MATLAB compare), zero (the paper), measured")
     p.add_argument("--out", default=None, help="write the metrics as JSON here")
@@ -118,7 +117,7 @@ def _polish_line(polish: dict, search_cost: str) -> str:
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from ..evaluate import evaluate
 
-    flight = read_flight(args.data, args)
+    flight = read_flight(args.data or DEFAULT_DATA, args)
     block = evaluate(args.model, flight, outputs=outputs(args.outputs), x0=args.x0, **sim_options(args))
     _print_metrics(f"{args.model} on {flight.source} ({flight.n_samples} samples, dt {flight.dt:.4g} s)", block)
     if args.out:
@@ -136,7 +135,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
     if args.checkpoint_every < 1:
         raise ValueError(f"--checkpoint-every: must be >= 1 generation, got {args.checkpoint_every}")
-    records = [read_flight(spec, args) for spec in args.train]
+    records = [read_flight(spec, args) for spec in args.data or [DEFAULT_DATA]]
     train = records[0] if len(records) == 1 else records
     validate = None if not args.validate else read_flight(args.validate, args)
     out = Path(args.out)

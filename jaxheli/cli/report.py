@@ -1,10 +1,11 @@
-"""``jaxheli report RESULT... [--diagnosis DIR_OR_JSON] [--data FILE] [--all-flights] --out report.html``."""
+"""``jaxheli report RESULT... [--diagnosis DIR_OR_JSON] [--data FILE[:t0-t1]]... [--all-flights] --out report.html``."""
 
 from __future__ import annotations
 
 import argparse
 
 from ..report.build import write_report
+from ._options import FLIGHT, FLIGHT_HELP
 
 
 def add_report_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -19,9 +20,10 @@ def add_report_parser(subparsers: argparse._SubParsersAction) -> argparse.Argume
     p.add_argument("results", nargs="+", metavar="RESULT", help="result folder or result.json of jaxheli identify")
     p.add_argument("--diagnosis", default=None, metavar="DIR_OR_JSON",
                    help="folder or file of jaxheli diagnose (diagnosis.json) or jaxheli check (consistency.json)")
-    p.add_argument("--data", action="append", default=[], metavar="FILE",
-                   help="flight file to plot (repeatable; 'default' for the embedded flight); default: the training "
-                   "and validation files recorded in each result.json, when they exist")
+    p.add_argument("--data", action="append", default=[], metavar=FLIGHT,
+                   help=f"a flight to plot (default: the training and validation files recorded in each result.json, "
+                        f"when they exist): {FLIGHT_HELP}; several: repeat --data (one flight after each, as the "
+                        "RESULTs are positional)")
     p.add_argument("--all-flights", action="store_true",
                    help="draw every model on every flight (default: each model on the flights it was fitted or "
                    "validated on; every model on a flight only --data names)")

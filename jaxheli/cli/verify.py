@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from ..flights import DEFAULT_DATA
-from ._options import add_load_options, outputs, read_flight
+from ._options import add_data_option, add_load_options, outputs, read_flight
 
 
 def add_verify_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -14,9 +14,7 @@ def add_verify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argume
     p = subparsers.add_parser("verify", help="verify a model on flights in short runs (Tischler ch. 14): TIC, J_rms, "
                                              "Pearson, fit %% per channel, the model's modes, a PNG per run")
     p.add_argument("--model", required=True, help="result.json / parameters JSON, or a named set: table2")
-    p.add_argument("--data", nargs="+", action="extend", default=None, metavar="FILE[:t0-t1]",
-                   help=f"flight file(s), each optionally cut to a window t0-t1 s (default: {DEFAULT_DATA}, the "
-                        "embedded synthetic flight)")
+    add_data_option(p, f"the flight(s) the model is verified on (default: {DEFAULT_DATA})", several=True)
     p.add_argument("--run-length", nargs="+", default=["5"], metavar="SECONDS",
                    help="run length(s), s, or 'whole' for one run over the window (default 5; the book's practice: "
                         "5 10 whole)")

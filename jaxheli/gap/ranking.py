@@ -288,7 +288,7 @@ def verdict(
     if not refit.settled:
         return (f"base model under-fitted: {shrink} and it is still converging (training RSS down "
                 f"{refit.progress_pct:.1f} % over the last {refit.steps} steps): re-identify the base model "
-                f"(jaxheli identify --method pem --train FILE, or the diagnosis's re-fitted base, refit.theta), "
+                f"(jaxheli identify --method pem --data FILE, or the diagnosis's re-fitted base, refit.theta), "
                 f"or raise max_steps (--max-steps), before attributing effects")
     if refit.under_fitted:
         return f"base model under-fitted: {shrink}; beyond that, {text}"

@@ -260,8 +260,8 @@ def diagnosis(diag: DiagnosisSource | None, results: Sequence[ResultSource]) -> 
         model = results[0].folder / "result.json"
         return section("diagnosis", TITLES["diagnosis"], note(
             "No gap diagnosis given. Produce one with ",
-            tag("code", f"jaxheli diagnose --model {model} --train FILE --validate FILE --out DIR"),
-            " (and the data check with ", tag("code", "jaxheli check FILE --out DIR"), "), then rerun ",
+            tag("code", f"jaxheli diagnose --model {model} --data FILE --validate FILE --out DIR"),
+            " (and the data check with ", tag("code", "jaxheli check --data FILE --out DIR"), "), then rerun ",
             tag("code", "jaxheli report ... --diagnosis DIR"), "."))
     content = diag.content or {}
     body: list[Any] = [tag("p", "From ", tag("code", str(diag.path)), ".")]
@@ -287,7 +287,7 @@ def diagnosis(diag: DiagnosisSource | None, results: Sequence[ResultSource]) -> 
     if diag.consistency is not None:
         body += [tag("h3", "Data consistency findings"), _findings(diag.consistency)]
     elif diag.content is not None:
-        body.append(note("No consistency findings: run ", tag("code", "jaxheli check FILE --out DIR"), "."))
+        body.append(note("No consistency findings: run ", tag("code", "jaxheli check --data FILE --out DIR"), "."))
     body += [png_figure(png, f"{name} (from {diag.path})") for name, png in diag.pngs.items()]
     return section("diagnosis", TITLES["diagnosis"], *body)
 
