@@ -72,7 +72,7 @@ def _authors_outputs(flight_a_raw: jaxheli.FlightData) -> dict[str, dict[str, di
 
 def training_flight(raw_a: jaxheli.FlightData, lowpass_hz: float = 3.0, consistency: str = "correct"):
     """Flight A as trained on: 50 samples dropped at each end, the consistency findings applied (unless
-    ``consistency="none"``), low-passed at ``lowpass_hz``; and the findings. ``jaxheli prepare FILE --trim 50
+    ``consistency="none"``), low-passed at ``lowpass_hz``; and the findings. ``jaxheli prepare --data FILE --trim 50
     --correct --lowpass 3`` writes the same flight (tests/test_prepare.py)."""
     train = trim(raw_a, drop_samples=50)
     findings = check(train)
