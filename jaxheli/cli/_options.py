@@ -51,7 +51,8 @@ class OldForm(argparse.Action):
 def adopt_old_forms(parser: argparse.ArgumentParser, namespace: argparse.Namespace) -> None:
     """Rewrite each old form on ``parser``'s command line (:class:`OldForm`) as its new form in ``namespace``, in
     the order the parser defines them, with one line on stderr per form: ``PROG: note: 'OLD' is deprecated; use
-    NEW``. A value the new form cannot take is an error of the parser."""
+    NEW``. A value the new form cannot take is an error of the parser. The ``jaxheli`` parser calls it once its
+    sub-command's arguments are parsed."""
     for action in parser._actions:
         if isinstance(action, OldForm) and action.dest in vars(namespace):
             old = action.old.format(prog=parser.prog)

@@ -7,7 +7,7 @@ import json
 import os
 from pathlib import Path
 
-from ._options import OldForm, adopt_as_data, add_data_option
+from ._options import OldForm, add_data_option, adopt_as_data
 
 
 def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:

@@ -10,14 +10,15 @@ from .consistency import check, correct
 
 
 def prepare(
-    flight: FlightData, *, window: tuple[float, float] | None = None, trim_samples: int = 0,
+    flight: FlightData, *, window: tuple[float | None, float | None] | None = None, trim_samples: int = 0,
     check_data: bool = False, correct_data: bool = False, lowpass_hz: float | None = None,
     dt: float | None = None,
 ) -> FlightData:
-    """``flight`` cut to ``window`` (``(t0, t1)`` s on its own time axis) and ``trim_samples`` dropped at each
-    end, then checked for consistency (:func:`~jaxheli.gap.consistency.check`; ``check_data`` records the
-    findings in ``metadata["consistency"]``, ``correct_data`` also applies the significant ones), low-passed
-    at ``lowpass_hz`` (zero-phase, inputs too) and resampled to ``dt`` (s), in that order."""
+    """``flight`` cut to ``window`` (``(t0, t1)`` s on its own time axis, ``None`` an open end) and
+    ``trim_samples`` dropped at each end, then checked for consistency (:func:`~jaxheli.gap.consistency.check`;
+    ``check_data`` records the findings in ``metadata["consistency"]``, ``correct_data`` also applies the
+    significant ones), low-passed at ``lowpass_hz`` (zero-phase, inputs too) and resampled to ``dt`` (s), in that
+    order."""
     if window is not None or trim_samples:
         start, stop = window if window is not None else (None, None)
         flight = trim(flight, start=start, stop=stop, drop_samples=trim_samples)
