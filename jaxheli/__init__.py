@@ -58,6 +58,7 @@ from .problem import make_records as make_records
 from .data.preprocess import detrend as detrend, from_samples as from_samples, lowpass as lowpass
 from .data.preprocess import resample as resample, split as split, trim as trim
 from .report import build_report as build_report, write_report as write_report
+from ._progress import reporting as reporting
 from .results import save_result as save_result
 from .verify import Verification as Verification, save_verification as save_verification, verify as verify
 from .sim.simulate import Simulator as Simulator, make_simulator as make_simulator, simulate as simulate

@@ -22,6 +22,7 @@ import jax
 import numpy as np
 import scipy.stats
 
+from ._progress import stage
 from ._types import Float
 from .cost import SearchCost
 from .data.flight import FlightData, constant_outputs, default_outputs
@@ -212,14 +213,16 @@ def identify(
         search = problem.variant(x0="zero")
         if not method.startswith("freq"):
             run_options = {"chunk": chunk, "progress": progress, "checkpoint": checkpoint, "resume": resume}
-            trial_params, trial_costs, history, evaluations = _population_trials(
-                search, GA if method == "ga" else IWO, iterations, engine_options, key, trials, run_options)
+            with stage(f"{'GA' if method == 'ga' else 'IWO'}: {trials} trial(s) of {iterations} generations on the "
+                       f"{settings.cost} cost (the first chunk compiles)") as now:
+                trial_params, trial_costs, history, evaluations = _population_trials(
+                    search, GA if method == "ga" else IWO, iterations, engine_options, key, trials, run_options)
+                now.outcome = f"best cost {float(np.min(trial_costs)):.6g}"
         searched = trial_params if method == "iwo+freq+polish" else None
         if "freq" in method:
             starts = [start] * trials if searched is None else list(searched)
             try:
-                fits = [frequency_fit(search, start=starts[k], seed=seed + k, **(freq_options or {}))
-                        for k in range(trials)]
+                fits = [_frequency_trial(search, starts[k], seed + k, k, trials, freq_options) for k in range(trials)]
             except IncoherentFlight as error:
                 if searched is None:
                     raise
@@ -237,7 +240,9 @@ def identify(
     best = int(np.argmin(trial_costs))
     params = trial_params[best]
     seconds = time.perf_counter() - t0
-    unc = standard_errors(fitted, params, nonfinite="unresolved")
+    with stage("standard errors (Cramer-Rao) at the best parameters") as now:
+        unc = standard_errors(fitted, params, nonfinite="unresolved")
+        now.outcome = f"{int(np.sum(np.isfinite(unc.stderr) & (unc.stderr > 0)))} parameters resolved"
     record = {
         "method": method, "iterations": iterations, "trials": trials, "outputs": list(problem.outputs),
         "segment": settings.segment, "hold": settings.hold, "g": settings.g, "pem_segment": pem_segment,
@@ -252,23 +257,25 @@ def identify(
         "standard_errors": [part.sim.describe() for part in parts(fitted)],
     }
     truth = _known_truth(data) if truth is None else np.asarray(truth, dtype=np.float64)
-    return IdentificationResult(
-        method=method,
-        seed=seed,
-        settings=record,
-        params=params,
-        trial_params=trial_params,
-        trial_costs=trial_costs,
-        history=history,
-        intervals95=intervals95(trial_params),
-        stderr=dict(zip(PARAM_NAMES, map(float, unc.stderr))),
-        train=scores(params, scored),
-        validate=None if validate is None else validation_block(params, validate, problem),
-        polish=polish_info,
-        seconds=seconds,
-        truth=None if truth is None else _truth_block(truth, unc, scored, validate, problem),
-        frequency=None if fits is None else _frequency_block(fits, params),
-    )
+    with stage("scores on the training flight" + ("" if validate is None else " and the validation flight")
+               + ("" if truth is None else ", and the truth's beside them")):
+        return IdentificationResult(
+            method=method,
+            seed=seed,
+            settings=record,
+            params=params,
+            trial_params=trial_params,
+            trial_costs=trial_costs,
+            history=history,
+            intervals95=intervals95(trial_params),
+            stderr=dict(zip(PARAM_NAMES, map(float, unc.stderr))),
+            train=scores(params, scored),
+            validate=None if validate is None else validation_block(params, validate, problem),
+            polish=polish_info,
+            seconds=seconds,
+            truth=None if truth is None else _truth_block(truth, unc, scored, validate, problem),
+            frequency=None if fits is None else _frequency_block(fits, params),
+        )
 
 
 def scores(params: Float[np.ndarray, "40"], problem: Problem | Records) -> dict[str, Any]:
@@ -303,7 +310,13 @@ def _polish_trials(
     first round tries both); each trial's cost becomes its polished objective (the paper's cost for ``"pearson"``,
     else the normalised sum of squares per sample, :func:`jaxheli.cost.output_error_cost`)."""
     starts = trial_params if also is None else np.stack([trial_params, also], axis=1)
-    polished = [polish(th, search, objective=objective, max_steps=steps, rounds=rounds) for th in starts]
+    polished = []
+    for k, th in enumerate(starts):
+        with stage(f"polish of trial {k + 1} of {len(starts)} on the {objective} objective, "
+                   + (f"up to {rounds} rounds of " if objective == "output-error" else "")
+                   + f"{steps} LM steps") as now:
+            polished.append(polish(th, search, objective=objective, max_steps=steps, rounds=rounds))
+            now.outcome = f"{polished[-1].n_steps} steps"
     costs = np.array([p.cost if objective == "pearson" else p.rss / search.n_samples for p in polished])
     before, after = int(np.argmin(trial_costs)), int(np.argmin(costs))
     search_costs = [search_cost_of(theta, search) for theta in (trial_params[before], polished[after].theta)]
@@ -330,6 +343,19 @@ def _objective_rounds(res: PEMResult, objective: PolishObjective, n_samples: int
         return [[float(res.cost_start), float(res.cost)]]
     rounds = res.settings.get("rounds") or [{"rss_start": res.rss_start, "rss": res.rss}]
     return [[float(r["rss_start"]) / n_samples, float(r["rss"]) / n_samples] for r in rounds]
+
+
+def _frequency_trial(
+    search: Problem | Records, start: np.ndarray | None, seed: int, k: int, trials: int,
+    options: dict[str, Any] | None,
+) -> FrequencyFitResult:
+    """Trial ``k`` of ``trials``' frequency fit (:func:`~jaxheli.optim.frequency_fit.frequency_fit` from ``start``
+    and draws of ``seed``, with ``options``), a stage of the progress lines."""
+    with stage(f"frequency fit of trial {k + 1} of {trials} on Tischler's cost J") as now:
+        fit = frequency_fit(search, start=start, seed=seed, **(options or {}))
+        now.outcome = (f"average J {fit.j_average:.1f} from {fit.settings['starts']} starts of up to "
+                       f"{fit.settings['max_steps']} LM steps")
+    return fit
 
 
 def _frequency_block(fits: list[FrequencyFitResult], params: Float[np.ndarray, "40"]) -> dict[str, Any]:

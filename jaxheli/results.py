@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._progress import stage
 from .at_bounds import AtBound, at_bounds
 from .data.flight import FlightData
 from .data.flight import default_outputs
@@ -115,22 +116,23 @@ def save_result(
         history=result.history,
         stderr=np.array([result.stderr[n] for n in PARAM_NAMES]),
     )
-    for k, flight in enumerate(records):
-        files.append(_verification(result, flight, "estimate", out / _numbered("verification_train.png", k),
-                                   f"{result.method}: training flight{f' {k + 1}' if len(records) > 1 else ''}"
-                                   " (initial state estimated)"))
-    if validate is not None:
-        files.append(
-            _verification(result, validate, "estimate", out / "verification_validate.png",
-                          f"{result.method}: validation flight (initial state estimated)")
-        )
-    if result.frequency is not None:
-        files.append(_frequency(result, records[0], out / "frequency_response.png"))
-    polished = (result.polish or {}).get("objective_rounds")
-    if result.history.size or polished:
-        curves = {f"trial {k}": h for k, h in enumerate(result.history) if h.size}
-        rounds = {f"polish ({result.polish['objective']})": polished} if polished else None
-        files.append(plot_convergence(curves, out / "convergence.png", f"{result.method} convergence", rounds))
+    with stage(f"plots in {out}"):
+        for k, flight in enumerate(records):
+            files.append(_verification(result, flight, "estimate", out / _numbered("verification_train.png", k),
+                                       f"{result.method}: training flight{f' {k + 1}' if len(records) > 1 else ''}"
+                                       " (initial state estimated)"))
+        if validate is not None:
+            files.append(
+                _verification(result, validate, "estimate", out / "verification_validate.png",
+                              f"{result.method}: validation flight (initial state estimated)")
+            )
+        if result.frequency is not None:
+            files.append(_frequency(result, records[0], out / "frequency_response.png"))
+        polished = (result.polish or {}).get("objective_rounds")
+        if result.history.size or polished:
+            curves = {f"trial {k}": h for k, h in enumerate(result.history) if h.size}
+            rounds = {f"polish ({result.polish['objective']})": polished} if polished else None
+            files.append(plot_convergence(curves, out / "convergence.png", f"{result.method} convergence", rounds))
     return files
 
 

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._progress import stage
 from ._types import Float
 from .cost import metrics
 from .data.flight import FlightData, constant_outputs, default_outputs
@@ -124,7 +125,8 @@ def verify(
     if flat:
         notes.append(f"channel(s) {', '.join(flat)} constant over some run: left out")
     spread = flight.select(chans).outputs.std(axis=0)
-    runs = tuple(_run(theta, _cut(flight, a, b), chans, spread, hold, g) for a, b in spans)
+    with stage(f"verification on {flight.source}: {len(spans)} run(s)"):
+        runs = tuple(_run(theta, _cut(flight, a, b), chans, spread, hold, g) for a, b in spans)
     pooled = _scores(np.concatenate([r.simulated for r in runs]), np.concatenate([r.measured for r in runs]),
                      chans, spread)
     found = modes(theta, g)

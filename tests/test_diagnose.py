@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from jaxheli import reporting
 from jaxheli.benchmark.independent import independent_trial
 from jaxheli.cost import nmse
 from jaxheli.synth.excitation import Excitation
@@ -126,12 +127,20 @@ def test_clean_flight_gives_no_significant_effect():
     assert d["base_refit"]["joint"] and d["base_refit"]["settled"] and not d["base_refit"]["under_fitted"]
 
 
-def test_joint_reidentification_finds_the_delay_and_credits_it_beyond_the_refitted_base(delayed):
+def test_joint_reidentification_finds_the_delay_and_credits_it_beyond_the_refitted_base(delayed, capsys):
     """Re-identified jointly (the default), the base model absorbs part of the withheld delay (the given base
     shrinks when re-fitted alone), and the delay is credited only beyond that; its fit stays in its box, and
-    the reference's gap matches the numpy predictor run on its re-fitted parameters."""
+    the reference's gap matches the numpy predictor run on its re-fitted parameters. Its progress lines name
+    the joint stages (those of every diagnosis: tests/test_progress.py)."""
     train, validate, frozen, _ = delayed
-    d = diagnose(TABLE2, train, validate, **OPTIONS).to_json()
+    capsys.readouterr()
+    with reporting():
+        d = diagnose(TABLE2, train, validate, **OPTIONS).to_json()
+    progress = capsys.readouterr().err
+    for stage in ("reference: the base model re-fitted alone (60 LM steps a round) ...", "  round 1 of at most 3: ",
+                  "jointly with the base model (15 LM steps, one solve): training RSS: reference",
+                  "structure hypothesis: the reference re-fitted in the physical ranges", "final fit: input_delay"):
+        assert stage in progress, (stage, progress)
     refit = d["base_refit"]
     assert refit["joint"] and refit["settled"]
     top = d["ranking"][0]

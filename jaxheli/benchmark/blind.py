@@ -32,9 +32,9 @@ from typing import Any, NamedTuple
 
 import jax
 import numpy as np
-from tqdm.auto import tqdm
 
 from .._affinity import cores, on_core
+from .._progress import left, note, stage
 from ..bounds import Bounds
 from ..data.flight import FlightData, constant_outputs
 from ..effects import registry as fx
@@ -262,8 +262,9 @@ def run_trial(
     if flat:
         inj, train, validate = _restrict(inj, outputs), train.select(outputs), validate.select(outputs)
         facts = {**facts, "dropped_outputs": sorted(flat)}
-    theta, ident = base_model(train, base, seed, pem_steps=pem_steps, iterations=iterations, outputs=outputs,
-                              box=box)
+    with stage(f"base model by {base} on the training flight"):
+        theta, ident = base_model(train, base, seed, pem_steps=pem_steps, iterations=iterations, outputs=outputs,
+                                  box=box)
     train_pred, validate_pred = predictor_pair(theta, train, validate, segment=segment)
     *arrays, owner = fx.tried_arrays(fx.ALL, outputs)
     oracle = _oracle_row(inj.kind, inj, *fx.candidate_arrays(fx.ALL, outputs))
@@ -273,7 +274,10 @@ def run_trial(
     ranking, refit, structure = stages.ranked.entries, stages.refit, stages.structure
     scored, credited = stages.ranked.scored, stages.ranked.credited
     best = next((e for e in ranking if e.significant), None)
-    final = final_fit(train_pred, validate_pred, best, stages.box) if best is not None else None
+    final = None
+    if best is not None:
+        with stage(f"final fit: {best.effect}'s size re-identified with the base model on both flights"):
+            final = final_fit(train_pred, validate_pred, best, stages.box)
     top = best.effect if best else "none"
     oracle_z, oracle_stderr = np.asarray(scored.fit.z[-1]), np.asarray(scored.fit.stderr[-1])
     record = {"kind": kind, "seed": int(seed), "truth_sim": truth, **facts, "truth": where.truth,
@@ -348,8 +352,9 @@ def run_blind(
     """Diagnose each trial (a :class:`Trial` or ``(kind, seed)``) blind (:func:`run_trial` with ``options``);
     one record per trial, in the order of ``trials``. ``workers > 1`` runs trials in that many processes (each a
     trial at a time, in float64, each started on a core of its own when the machine has that many,
-    :func:`_worker_cores`). A progress bar advances per trial and ``on_trial(records_so_far)`` runs after each,
-    e.g. to save (records finished so far, in the order of ``trials``)."""
+    :func:`_worker_cores`). A progress line reports each trial, with the time left (:func:`jaxheli.reporting`; in
+    one process its stages too), and ``on_trial(records_so_far)`` runs after each, e.g. to save (records finished
+    so far, in the order of ``trials``)."""
     done: dict[int, dict[str, Any]] = {}
 
     def finished(i: int, record: dict[str, Any]) -> None:
@@ -358,11 +363,16 @@ def run_blind(
             on_trial([done[j] for j in sorted(done)])
 
     trials = [Trial(*t) for t in trials]
-    bar = tqdm(total=len(trials), desc="blind trials", unit="trial")
+    start = time.perf_counter()
+    note(f"blind check: {len(trials)} trial(s) in {max(workers, 1)} process(es); each process's first trial "
+         "compiles the solvers")
     if workers <= 1:
         for i, (kind, seed, base) in enumerate(trials):
-            finished(i, run_trial(kind, seed, base=base, **options))
-            bar.update()
+            with stage(f"trial {i + 1} of {len(trials)}: {kind}, seed {seed}, {base} base model") as now:
+                record = run_trial(kind, seed, base=base, **options)
+                now.outcome = _outcome(record)
+            finished(i, record)
+            note(f"trials: {left(len(done), len(trials), time.perf_counter() - start)}")
     else:
         todo = iter(enumerate(trials))
         running: dict[Future, tuple[int, ProcessPoolExecutor]] = {}
@@ -374,16 +384,24 @@ def run_blind(
                 running[pool.submit(run_trial, kind, seed, base=base, **options)] = (i, pool)
 
         with contextlib.ExitStack() as stack:
-            for core in _worker_cores(workers):
-                feed(stack.enter_context(_process_on(core)))
-            while running:
-                for job in wait(running, return_when=FIRST_COMPLETED)[0]:
-                    i, pool = running.pop(job)
-                    finished(i, job.result())
-                    bar.update()
-                    feed(pool)
-    bar.close()
+            with stage(f"starting {workers} trial processes"):
+                for core in _worker_cores(workers):
+                    feed(stack.enter_context(_process_on(core)))
+            with stage(f"{len(trials)} trials in {len(running)} processes"):
+                while running:
+                    for job in wait(running, return_when=FIRST_COMPLETED)[0]:
+                        i, pool = running.pop(job)
+                        finished(i, job.result())
+                        kind, seed, base = trials[i]
+                        note(f"trial {i + 1} of {len(trials)} ({kind}, seed {seed}, {base} base model): "
+                             f"{_outcome(done[i])}; {left(len(done), len(trials), time.perf_counter() - start)}")
+                        feed(pool)
     return [done[i] for i in range(len(trials))]
+
+
+def _outcome(record: dict[str, Any]) -> str:
+    """A finished trial in words: the effect it named and whether that is right."""
+    return f"named {record['top']} ({'right' if record['correct'] else 'wrong'})"
 
 
 def _worker_cores(workers: int) -> list[int | None]:

@@ -5,7 +5,7 @@ Each module registers the parsers of one command group and holds their handlers,
 the library and print or write: :mod:`~jaxheli.cli.prepare` (prepare), :mod:`~jaxheli.cli.identify` (identify,
 evaluate, synth), :mod:`~jaxheli.cli.verify` (verify), :mod:`~jaxheli.cli.gap` (check, localise, diagnose, blind), :mod:`~jaxheli.cli.bench` (bench,
 trials-scaling), :mod:`~jaxheli.cli.report` (report); :mod:`~jaxheli.cli._options` holds the options several
-commands share.
+commands share; the commands with ``--quiet`` write progress lines to stderr unless it is given.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import NoReturn, TextIO
 
+from .._progress import reporting
 from ._options import adopt_old_forms
 from .bench import add_bench_parser, add_trials_scaling_parser
 from .gap import add_blind_parser, add_check_parser, add_diagnose_parser, add_localise_parser
@@ -62,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     import jax
 
     jax.config.update("jax_enable_x64", not args.float32)
-    with _console_warnings(f"jaxheli {args.command}"):
+    with _console_warnings(f"jaxheli {args.command}"), reporting(getattr(args, "quiet", True) is False):
         try:
             return args.func(args)
         except (FileNotFoundError, ValueError) as err:

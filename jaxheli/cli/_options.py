@@ -1,7 +1,7 @@
 """Options several commands share: the flights a command reads (``--data FILE[:t0-t1]``, the one grammar of
 every command, and the old forms it replaced), how they are read (``--strict/--no-strict``,
-``--missing-inputs``), the channel list ``--outputs`` and the simulation options ``--hold``, ``--g`` (m/s^2)
-and ``--segment`` (s), with their conversion to library arguments."""
+``--missing-inputs``), the channel list ``--outputs``, the simulation options ``--hold``, ``--g`` (m/s^2) and
+``--segment`` (s), with their conversion to library arguments, and ``--quiet`` of the long-running commands."""
 
 from __future__ import annotations
 
@@ -107,6 +107,13 @@ def add_load_options(p: argparse.ArgumentParser) -> None:
                    help='logs: channels read from other fields, a JSON object such as {"p": ["ATT", "RollRate"], '
                         '"lat": ["RC", "C1", -1.0]} (message or topic, field, optional scale); replaces the '
                         'default map')
+
+
+def add_quiet_option(p: argparse.ArgumentParser) -> None:
+    """Add ``--quiet`` to the parser of a long-running command: without it, the command writes a progress line to
+    stderr at each stage and whenever a stage runs long (:func:`jaxheli.reporting`)."""
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress lines on stderr (errors, warnings and the result still print)")
 
 
 def finding_line(finding: dict) -> str:

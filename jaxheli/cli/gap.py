@@ -16,8 +16,8 @@ from ..gap.diagnose import diagnose, ranking_table, write_diagnosis
 from ..gap.significance import MIN_SHRINK
 from ..gap.prepare import prepare
 from ..model import G_SI
-from ._options import (add_data_option, add_flight_option, add_load_options, add_sim_options, finding_line, outputs,
-                       read_flight, sim_options)
+from ._options import (add_data_option, add_flight_option, add_load_options, add_quiet_option, add_sim_options,
+                       finding_line, outputs, read_flight, sim_options)
 
 
 def add_check_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -78,6 +78,7 @@ def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     p.add_argument("--train-lowpass", type=float, default=None, help="zero-phase low-pass of the training flight, Hz")
     p.add_argument("--train-dt", type=float, default=None, help="resample the training flight to this step, s")
     add_load_options(p)
+    add_quiet_option(p)
     p.set_defaults(func=_cmd_diagnose)
     return p
 
@@ -114,6 +115,7 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     p.add_argument("--workers", type=int, default=1,
                    help="trials run in parallel processes, each on a core of its own (default 1)")
     p.add_argument("--out", default="jaxheli-blind", help="output folder (blind.json, blind.md)")
+    add_quiet_option(p)
     p.set_defaults(func=_cmd_blind)
     return p
 

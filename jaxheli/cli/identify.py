@@ -13,6 +13,7 @@ from ..optim.polish import POLISH_OBJECTIVES
 from ._options import (add_data_option, add_flight_option, add_load_options, add_sim_options, outputs, read_flight,
                        sim_options)
 from .verify import print_modes, print_verification
+from ._options import add_quiet_option
 
 
 def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -55,6 +56,7 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     p.add_argument("--freq-band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                    help="freq: fitted band, Hz (default 0.1 Hz to a third of Nyquist, at most 10 Hz)")
     add_sim_options(p)
+    add_quiet_option(p)
     p.set_defaults(func=_cmd_identify)
     return p
 
@@ -154,6 +156,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         polish_rounds=args.polish_rounds,
         checkpoint=None if args.method.startswith(("pem", "freq")) else str(out / "checkpoint.eqx"),
         resume=args.resume,
+        progress=not args.quiet,
         chunk=args.checkpoint_every,
         search_precision=args.search_precision,
         freq_options={"starts": args.freq_starts, "screen": args.freq_screen, "max_steps": args.freq_steps,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..report.build import write_report
-from ._options import FLIGHT, FLIGHT_HELP
+from ._options import FLIGHT, FLIGHT_HELP, add_quiet_option
 
 
 def add_report_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -28,6 +28,7 @@ def add_report_parser(subparsers: argparse._SubParsersAction) -> argparse.Argume
                    help="draw every model on every flight (default: each model on the flights it was fitted or "
                    "validated on; every model on a flight only --data names)")
     p.add_argument("--out", default="report.html", help="output HTML file (default report.html)")
+    add_quiet_option(p)
     p.set_defaults(func=_cmd_report)
     return p
 

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from ..flights import DEFAULT_DATA
-from ._options import add_data_option, add_load_options, outputs, read_flight
+from ._options import add_data_option, add_load_options, add_quiet_option, outputs, read_flight
 
 
 def add_verify_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -23,6 +23,7 @@ def add_verify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argume
     p.add_argument("--hold", choices=("zoh", "foh"), default="zoh", help="input hold between samples (default zoh)")
     p.add_argument("--g", type=float, default=9.81, help="gravity, m/s^2 (default 9.81)")
     add_load_options(p)
+    add_quiet_option(p)
     p.set_defaults(func=_cmd_verify)
     return p
 

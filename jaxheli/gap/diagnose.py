@@ -22,6 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._progress import stage
 from .._types import Array, Float
 from ..cost import nmse
 from ..evaluate import resolve_params
@@ -115,27 +116,33 @@ def diagnose(
             raise ValueError(f"{flight.source} ({role} flight): output channel(s) {flat} are constant; leave "
                              f"them out of outputs")
     train, validate = train.select(names), validate.select(names)
-    consistency = tuple({**f.to_json(), "flight": role} for role, flight in (("train", train), ("validate", validate))
-                        for f in check(flight))
+    with stage("consistency check of both flights") as now:
+        consistency = tuple({**f.to_json(), "flight": role}
+                            for role, flight in (("train", train), ("validate", validate)) for f in check(flight))
+        now.outcome = f"{sum(f['significant'] for f in consistency)} significant of {len(consistency)} findings"
     problems = [make_problem(f, outputs=names, g=g) for f in (train, validate)]
-    preds = predictor_pair(theta, *problems, segment=segment, g=g, track=track)
+    with stage("predictors of both flights" + (", the restart filter tuned on the training flight"
+                                               if track is None else "")) as now:
+        preds = predictor_pair(theta, *problems, segment=segment, g=g, track=track)
+        now.outcome = f"restart filter level {float(preds[0].track):g}"
     attribution = diagnose_effects(theta, *preds, list(effects), top=top, joint=joint, bounds=bounds,
                                    max_steps=max_steps, min_shrink=min_shrink)
-    gaps = [_gap(gap, names) for gap in np.asarray(nmse(predictions(theta, preds[1], attribution.shown),
-                                                          validate.outputs))]
-    return Diagnosis(
-        model=str(model) if isinstance(model, (str, Path)) else "given parameters",
-        flights={role: _flight_summary(f) for role, f in (("train", train), ("validate", validate))},
-        outputs=names,
-        segment_s=segment,
-        consistency=consistency,
-        localisation=_localise_base(theta, validate, preds[1], segment),
-        attribution=attribution,
-        gap_before=gaps[0],
-        gap_best=gaps[1],
-        gap_combination=gaps[2] if len(gaps) > 2 else None,
-        localisation_train=_localise_base(theta, train, preds[0], segment) if localise_train else None,
-    )
+    with stage("gaps and localisation of the base model" + (" on both flights" if localise_train else "")):
+        gaps = [_gap(gap, names) for gap in np.asarray(nmse(predictions(theta, preds[1], attribution.shown),
+                                                              validate.outputs))]
+        return Diagnosis(
+            model=str(model) if isinstance(model, (str, Path)) else "given parameters",
+            flights={role: _flight_summary(f) for role, f in (("train", train), ("validate", validate))},
+            outputs=names,
+            segment_s=segment,
+            consistency=consistency,
+            localisation=_localise_base(theta, validate, preds[1], segment),
+            attribution=attribution,
+            gap_before=gaps[0],
+            gap_best=gaps[1],
+            gap_combination=gaps[2] if len(gaps) > 2 else None,
+            localisation_train=_localise_base(theta, train, preds[0], segment) if localise_train else None,
+        )
 
 
 def _localise_base(
@@ -177,17 +184,18 @@ def write_diagnosis(
     (out / "diagnosis.json").write_text(json.dumps(content, indent=1))
     (out / "consistency.json").write_text(json.dumps(content["consistency"], indent=1))
     shown = diagnosis.attribution.shown
-    pred = make_predictor(flight, segment=diagnosis.segment_s, g=g, track=diagnosis.attribution.track)
-    estimate, model = frequency_comparison(theta, flight, names, g)
-    return [
-        out / "diagnosis.json",
-        out / "consistency.json",
-        plot_residual_bands(local, out / "residual_bands.png", title=flight.source),
-        plot_lag_correlation(local, out / "lag_correlation.png"),
-        plot_frequency_response(estimate, model, names, out / "frequency_response.png", title=flight.source),
-        plot_before_after(flight, predictions(theta, pred, shown), ["base model"] + [f"+ {e.effect}" for e in shown],
-                          out / "before_after.png"),
-    ]
+    with stage(f"plots in {out}"):
+        pred = make_predictor(flight, segment=diagnosis.segment_s, g=g, track=diagnosis.attribution.track)
+        estimate, model = frequency_comparison(theta, flight, names, g)
+        return [
+            out / "diagnosis.json",
+            out / "consistency.json",
+            plot_residual_bands(local, out / "residual_bands.png", title=flight.source),
+            plot_lag_correlation(local, out / "lag_correlation.png"),
+            plot_frequency_response(estimate, model, names, out / "frequency_response.png", title=flight.source),
+            plot_before_after(flight, predictions(theta, pred, shown),
+                              ["base model"] + [f"+ {e.effect}" for e in shown], out / "before_after.png"),
+        ]
 
 
 def plot_before_after(

@@ -25,6 +25,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._progress import note, stage
 from .._types import ArrayLike, Float
 from ..bounds import Bounds
 from ..data.flight import FlightData
@@ -61,13 +62,21 @@ def fit_and_score(
     given = jnp.asarray(theta)
     start_theta, rss_start = given, None
     if box is not None:
-        first = refit_alone(train, given, jax.tree.map(lambda a: a[:1], cand), REFERENCE_STEPS * max_steps, box)
+        with stage(f"reference: the base model re-fitted alone ({REFERENCE_STEPS * max_steps} LM steps a round)"
+                   ) as now:
+            first = refit_alone(train, given, jax.tree.map(lambda a: a[:1], cand), REFERENCE_STEPS * max_steps, box)
+            now.outcome = f"training RSS {float(first.rss[0]):.6g}"
         start_theta, rss_start = first.theta[0], float(first.rss[0])
         cand = carry_reference(cand, first.z[0])
-    fit = fit_candidates(train, start_theta, base, cand, max_steps, box)
-    etas = jax.vmap(lambda i, z: embed(base, i, z))(cand.index, fit.z)
-    held = HeldOut(*(np.asarray(a) for a in score(validate, jnp.concatenate([given[None, :], fit.theta]),
-                                                   jnp.concatenate([base[None, :], etas]))))
+    rows_in = cand.index.shape[0]
+    with stage(f"fitting {rows_in - 1} candidate rows and the reference "
+               + ("jointly with the base model" if box is not None else "on the frozen base model")
+               + f" ({max_steps} LM steps, one solve)") as now:
+        fit = fit_candidates(train, start_theta, base, cand, max_steps, box)
+        etas = jax.vmap(lambda i, z: embed(base, i, z))(cand.index, fit.z)
+        held = HeldOut(*(np.asarray(a) for a in score(validate, jnp.concatenate([given[None, :], fit.theta]),
+                                                       jnp.concatenate([base[None, :], etas]))))
+        now.outcome = f"training RSS: reference {float(fit.rss[0]):.6g}, best row {float(np.min(fit.rss)):.6g}"
     rows = held.take(slice(1, None))
     if owner is not None:
         neutral = np.r_[np.asarray(base), 0.0][np.asarray(cand.index)]
@@ -110,7 +119,12 @@ def ranked(
     ranking = shrink_entries(labels, outputs, jax.tree.map(lambda a: a[:rows], scored.fit),
                              credited.take(slice(None, rows)), min_shrink, shared)
     refit = base_refit(scored, outputs, min_shrink)
-    return Ranked(withhold(ranking, refit), refit, scored, credited, jax.tree.map(lambda a: a[:1], cand))
+    entries = withhold(ranking, refit)
+    if entries:
+        note(f"best so far: {entries[0].effect} shrinks the held-out gap {entries[0].shrink_pct:.1f} +- "
+             f"{entries[0].shrink_se_pct:.1f} %; significant: "
+             f"{', '.join(e.effect for e in entries if e.significant) or 'none'}")
+    return Ranked(entries, refit, scored, credited, jax.tree.map(lambda a: a[:1], cand))
 
 
 class Staged(NamedTuple):
@@ -154,10 +168,13 @@ def staged(
         return Staged(first, first.refit, hypothesis, (), box)
     rows = np.flatnonzero(np.isin(owner, chosen))
     rows = np.r_[rows, np.full(-len(rows) % RECHECK_ROWS, rows[-1])]
-    again = ranked(train, validate, hypothesis.theta, [labels[c] for c in chosen], tuple(a[rows] for a in arrays),
-                   np.searchsorted(chosen, owner[rows]), max_steps, min_shrink,
-                   theta_box(hypothesis.theta, physical_box(box)))
-    both = {e.effect for e in again.entries if e.significant}
+    with stage(f"re-check of {', '.join(labels[c] for c in chosen)} beyond the structure, in the physical ranges"
+               ) as now:
+        again = ranked(train, validate, hypothesis.theta, [labels[c] for c in chosen], tuple(a[rows] for a in arrays),
+                       np.searchsorted(chosen, owner[rows]), max_steps, min_shrink,
+                       theta_box(hypothesis.theta, physical_box(box)))
+        both = {e.effect for e in again.entries if e.significant}
+        now.outcome = f"significant in both boxes: {', '.join(sorted(both)) or 'none'}"
     entries = [dataclasses.replace(e, significant=e.significant and e.effect in both,
                                    tied_with=tuple(t for t in e.tied_with if t in both)) for e in first.entries]
     return Staged(first._replace(entries=entries), first.refit, hypothesis, tuple(again.entries), box)
@@ -251,13 +268,23 @@ def diagnose_effects(
     :func:`rank_effects`."""
     shape = fx.joint_shape(effects, train.outputs, top) if top > 1 else None
     box = theta_box(base_theta, bounds) if joint else None
+    note(f"ranking {len(effects)} candidate effect(s) on the validation flight"
+         + (", each re-identified jointly with the base model" if joint else ", the base model frozen"))
     stages = _rank(train, validate, base_theta, effects, max_steps, min_shrink, shape, box)
     ranking, refit, structure = stages.ranked.entries, stages.refit, stages.structure
     chosen = [e.effect for e in ranking if e.significant][:top]
-    combination = (_combine(train, validate, base_theta, chosen, max_steps, min_shrink,
-                            _warm(ranking, chosen, train.outputs), shape, box) if len(chosen) > 1 else None)
+    combination = None
+    if len(chosen) > 1:
+        with stage(f"combination: {' + '.join(chosen)} fitted together") as now:
+            combination = _combine(train, validate, base_theta, chosen, max_steps, min_shrink,
+                                   _warm(ranking, chosen, train.outputs), shape, box)
+            now.outcome = f"shrinks the held-out gap {combination.shrink_pct:.1f} %"
     best = next((e for e in ranking if e.significant), None)
-    final = final_fit(train, validate, best, box) if best is not None and box is not None else None
+    final = None
+    if best is not None and box is not None:
+        with stage(f"final fit: {best.effect}'s size re-identified with the base model on both flights") as now:
+            final = final_fit(train, validate, best, box)
+            now.outcome = final.fitted.summary
     return Attribution(tuple(ranking), combination, refit, verdict(ranking, refit, structure, stages.recheck), final,
                        float(train.track), structure, stages.recheck)
 

@@ -17,6 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._progress import note, stage
 from .._types import Array, ArrayLike, Float
 from ..bounds import Bounds
 from ..effects.plant import no_effect
@@ -76,9 +77,11 @@ def refit_alone(train: Predictor, theta: Float[Array, "40"], reference: EffectRo
     than :data:`SETTLED_PCT` or the solver converges."""
     base = jnp.asarray(no_effect(train.outputs))
     fit = None
-    for _ in range(REFERENCE_ROUNDS):
+    for k in range(REFERENCE_ROUNDS):
         last = fit
         fit = fit_candidates(train, theta, base, reference, steps, box)
+        note(f"  round {k + 1} of at most {REFERENCE_ROUNDS}: training RSS {float(fit.rss[0]):.6g} after "
+             f"{int(fit.steps[0])} steps{' (converged)' if bool(fit.converged[0]) else ''}")
         theta, reference = fit.theta[0], dataclasses.replace(reference, start=fit.z)
         if bool(fit.converged[0]) or (last is not None and 100.0 * float(last.rss[0] - fit.rss[0])
                                       < SETTLED_PCT * float(last.rss[0])):
@@ -112,11 +115,15 @@ def challenge(
     base = jnp.asarray(no_effect(train.outputs))
     reference = jax.tree.map(lambda a: a[:1], cand)
     best = None
-    for c in order:
-        start = carry_reference(dataclasses.replace(cand, start=fit.z), fit.z[c], row=c).start[:1]
-        trial = refit_alone(train, fit.theta[c], dataclasses.replace(reference, start=start), steps, box)
-        if float(trial.rss[0]) < float(fit.rss[0] if best is None else best.rss[0]):
-            best = trial
+    for n, c in enumerate(order):
+        with stage(f"challenge {n + 1} of {len(order)}: the reference re-fitted from row {c}'s base parameters") as now:
+            start = carry_reference(dataclasses.replace(cand, start=fit.z), fit.z[c], row=c).start[:1]
+            trial = refit_alone(train, fit.theta[c], dataclasses.replace(reference, start=start), steps, box)
+            to_beat = float(fit.rss[0] if best is None else best.rss[0])
+            if float(trial.rss[0]) < to_beat:
+                best = trial
+            now.outcome = (f"{'better' if best is trial else 'not better'}: training RSS {float(trial.rss[0]):.6g}, "
+                           f"the reference's {to_beat:.6g}")
     if best is None:
         return scored
     gain = float(fit.rss[0] - best.rss[0])

@@ -16,6 +16,7 @@ import dataclasses
 import jax.numpy as jnp
 import numpy as np
 
+from .._progress import note, stage
 from ..bounds import Bounds
 from ..effects.plant import no_effect
 from ..model import PARAM_NAMES, WIDE_LOWER, WIDE_UPPER
@@ -55,9 +56,11 @@ def structure_hypothesis(
     outputs = train.outputs
     base = jnp.asarray(no_effect(outputs))
     reference = dataclasses.replace(reference, start=scored.fit.z[:1])
-    fit = refit_alone(train, scored.fit.theta[0], reference, REFERENCE_STEPS * max_steps, wide)
-    gap, energy = (np.asarray(a)[0] for a in score(validate, fit.theta, embed(base, reference.index[0],
-                                                                                 fit.z[0])[None]))
+    with stage(f"structure hypothesis: the reference re-fitted in the physical ranges ({REFERENCE_STEPS * max_steps} "
+               "LM steps a round)"):
+        fit = refit_alone(train, scored.fit.theta[0], reference, REFERENCE_STEPS * max_steps, wide)
+        gap, energy = (np.asarray(a)[0] for a in score(validate, fit.theta, embed(base, reference.index[0],
+                                                                                     fit.z[0])[None]))
     yard = credited.take(0)
     gap_yard = float(np.mean(yard.gap))
     shrink = 100.0 * (gap_yard - float(np.mean(gap))) / gap_yard
@@ -70,7 +73,7 @@ def structure_hypothesis(
     freed = {n: float(v) for n, v, p, out in zip(PARAM_NAMES, theta, pinned, below | above) if p and out}
     beyond = {n: float(v) for n, v, p, out in zip(PARAM_NAMES, theta, pinned, below | above) if out and not p}
     crossed = {n: float(lower[i] if below[i] else upper[i]) for i, n in enumerate(PARAM_NAMES) if n in beyond}
-    return Structure(
+    hypothesis = Structure(
         shrink_pct=shrink,
         shrink_se_pct=se,
         significant=bool((freed or beyond) and shrink >= min_shrink and shrink >= SIG_SIGMA * se),
@@ -83,3 +86,6 @@ def structure_hypothesis(
         theta=theta,
         nuisance=fitted_nuisance(np.asarray(fit.z[0]), outputs),
     )
+    note(f"structure hypothesis: {hypothesis.summary}; shrinks the held-out gap {shrink:.1f} +- {se:.1f} % "
+         f"({'significant' if hypothesis.significant else 'not significant'})")
+    return hypothesis

@@ -26,6 +26,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from .._progress import note
 from .._types import Array, ArrayLike, Float
 from .._xla import QUICK_COMPILE
 from ..bounds import Free
@@ -129,6 +130,10 @@ def output_error(
         history.append({"segment_s": [p.settings.segment for p in parts(chosen)], "ladder": ladder,
                         "rss_start": res.rss_start, "rss": res.rss, "n_steps": res.n_steps, "result": res.result,
                         **({"starts_rss": [r.rss for r, _ in tried]} if len(tried) > 1 else {})})
+        lengths = dict.fromkeys("whole record" if r is None else f"{r:g} s" for r in history[-1]["segment_s"])
+        note(f"  round {k + 1} of at most {rounds}: runs of {', '.join(lengths)}, RSS {res.rss_start:.6g} -> "
+             f"{res.rss:.6g} in {res.n_steps} steps ({res.result})"
+             + (f"; starts' RSS {', '.join(f'{r.rss:.6g}' for r, _ in tried)}" if len(tried) > 1 else ""))
         results.append(res)
         thetas = res.theta[None]
         if res.success and not ladder:

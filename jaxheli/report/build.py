@@ -6,6 +6,7 @@ import datetime
 from collections.abc import Sequence
 from pathlib import Path
 
+from .._progress import stage
 from ..data.flight import FlightData
 from . import sections as s
 from .html import page
@@ -46,8 +47,9 @@ def write_report(
     given; otherwise the flights the results name), write the report to ``out`` and return its path;
     ``all_flights`` as in :func:`build_report`."""
     loaded = load_results(results)
-    html = build_report(loaded, load_flights(loaded, data), None if diagnosis is None else load_diagnosis(diagnosis),
-                        all_flights=all_flights)
+    with stage(f"report of {len(loaded)} result(s): tables, simulations and plots"):
+        html = build_report(loaded, load_flights(loaded, data),
+                            None if diagnosis is None else load_diagnosis(diagnosis), all_flights=all_flights)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(html, encoding="utf-8")
