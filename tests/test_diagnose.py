@@ -3,6 +3,7 @@
 import argparse
 import dataclasses
 import json
+import threading
 
 import jax.numpy as jnp
 import numpy as np
@@ -22,6 +23,7 @@ from jaxheli.model import PARAM_NAMES, TABLE2
 from jaxheli.optim.pem import pem
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS, piloted_flight
 from filtered_restart import reference_prediction
+from test_progress import SILENCE_S, STAMP, console_run
 
 OUT = DEFAULT_OUTPUTS
 DT = 0.05
@@ -48,20 +50,21 @@ def _cli(argv):
 
 @pytest.fixture(scope="module")
 def delayed(tmp_path_factory):
-    """The CLI run, base model frozen, on a flight pair with a 80 ms lon input delay: (train, validate,
-    diagnosis.json, folder)."""
+    """The command line's run (``jaxheli diagnose``, base model frozen) on a flight pair with a 80 ms lon input
+    delay, its console captured (:func:`test_progress.console_run`): (train, validate, diagnosis.json, folder, argv,
+    console)."""
     train, validate = _flight(DELAY, 3, 0.2), _flight(DELAY, 4, 0.25)
     folder = tmp_path_factory.mktemp("diagnose")
     save_npz(train, folder / "train.npz")
     save_npz(validate, folder / "validate.npz")
-    assert _cli(["--model", "table2", "--train", str(folder / "train.npz"), "--validate",
-                 str(folder / "validate.npz"), "--out", str(folder / "out"), "--max-steps", "15", "--top", "1",
-                 "--frozen-base"]) == 0
-    return train, validate, json.loads((folder / "out" / "diagnosis.json").read_text()), folder / "out"
+    argv = ["diagnose", "--model", "table2", "--train", str(folder / "train.npz"), "--validate",
+            str(folder / "validate.npz"), "--max-steps", "15", "--top", "1", "--frozen-base"]
+    console = console_run([*argv, "--out", str(folder / "out")])
+    return train, validate, json.loads((folder / "out" / "diagnosis.json").read_text()), folder / "out", argv, console
 
 
 def test_injected_delay_is_diagnosed_and_reported(delayed):
-    train, validate, d, _ = delayed
+    train, validate, d, *_ = delayed
     for key in ("model", "flights", "consistency", "localisation", "ranking", "combination", "verdict",
                 "gap_before", "gap_after"):
         assert key in d
@@ -90,7 +93,7 @@ def test_injected_delay_is_diagnosed_and_reported(delayed):
 
 
 def test_gaps_recomputed_independently(delayed):
-    train, validate, d, _ = delayed
+    train, validate, d, *_ = delayed
     top = d["ranking"][0]
     reference = reference_prediction(TABLE2, validate, segment=2.0, track=d["track"])  # base model, numpy predictor
     base = np.asarray(nmse(reference, validate.outputs))
@@ -132,7 +135,7 @@ def test_joint_reidentification_finds_the_delay_and_credits_it_beyond_the_refitt
     shrinks when re-fitted alone), and the delay is credited only beyond that; its fit stays in its box, and
     the reference's gap matches the numpy predictor run on its re-fitted parameters. Its progress lines name
     the joint stages (those of every diagnosis: tests/test_progress.py)."""
-    train, validate, frozen, _ = delayed
+    train, validate, frozen, *_ = delayed
     capsys.readouterr()
     with reporting():
         d = diagnose(TABLE2, train, validate, **OPTIONS).to_json()
@@ -217,7 +220,7 @@ def test_shared_outputs_and_bad_channels():
 
 
 def test_cli_writes_every_file(delayed, tmp_path):
-    _, _, d, out = delayed
+    _, _, d, out, *_ = delayed
     for name in ("diagnosis.json", "consistency.json", "residual_bands.png", "lag_correlation.png",
                  "before_after.png", "frequency_response.png"):
         assert (out / name).stat().st_size > 0
@@ -226,3 +229,26 @@ def test_cli_writes_every_file(delayed, tmp_path):
     assert Diagnosis.from_json(d).to_json() == d  # the file reads back as the record it was written from
     with pytest.raises(SystemExit, match="unknown effect"):
         _cli(["--model", "table2", "--train", "x.npz", "--validate", "y.npz", "--effects", "input_delay,gremlins"])
+
+
+STAGES = ("consistency check of both flights ...", "consistency check of both flights: ",
+          "predictors of both flights, the restart filter tuned", "restart filter level",
+          f"ranking {len(effects.ALL)} candidate effect(s) on the validation flight, the base model frozen",
+          "candidate rows and the reference on the frozen base model (15 LM steps, one solve) ...",
+          "best so far: input_delay shrinks the held-out gap", "gaps and localisation of the base model on both flights ...",
+          "gaps and localisation of the base model on both flights: done", "plots in ")
+"""Lines of the stages of a diagnosis on the frozen base (those of a joint one: the joint test above)."""
+
+
+def test_the_command_line_reports_every_stage_and_quiet_only_the_result(delayed, tmp_path):
+    *_, folder, argv, (out, err, silence) = delayed
+    lines = err.splitlines()
+    assert lines and all(STAMP.match(line) for line in lines), err
+    for text in STAGES:
+        assert any(text in line for line in lines), (text, err)
+    assert silence < SILENCE_S, err
+    assert "verdict: input_delay" in out
+    quiet_out, quiet_err, _ = console_run([*argv, "--out", str(tmp_path / "quiet"), "--quiet"])
+    assert quiet_err == ""
+    assert quiet_out == out.replace(str(folder), str(tmp_path / "quiet"))  # the same result
+    assert not any(t.name == "jaxheli-progress" for t in threading.enumerate())
