@@ -1,0 +1,185 @@
+"""Model-structure determination (fix what the flight cannot determine, re-fit), the Gaussian prior of the local
+fits, the named search boxes, and ``fixed`` in ``result.json``."""
+
+import json
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxheli.bounds import Bounds, named_box
+from jaxheli.data.flight import FlightData
+from jaxheli.model import LOWER, N_PARAMS, PARAM_NAMES, TABLE2, UPPER, WIDE_LOWER, WIDE_UPPER
+from jaxheli.optim.pem import pem
+from jaxheli.optim.prior import FLOOR_FRACTION, Prior
+from jaxheli.optim.structure import determine_structure, fixed_value, select_fixed
+from jaxheli.optim.uncertainty import from_residuals
+from jaxheli.sim.simulate import simulate
+from jaxheli.synth.excitation import multisine
+
+OUTPUTS = ("u", "v", "p", "q", "phi", "theta", "w", "r")
+FREE = ("Xu", "Yv", "Lb", "Ma", "tf", "Nr", "Alon", "Blat", "Dlat", "Zcol", "Ncol", "Nped")
+"""The parameters fitted in the flight tests (the rest pinned at the truth, Table 2): a small, fast problem."""
+IDX = [PARAM_NAMES.index(n) for n in FREE]
+
+
+def _box(free=FREE) -> Bounds:
+    """Table 2 pinned, ``free`` in the authors' bounds."""
+    lower, upper = TABLE2.copy(), TABLE2.copy()
+    for n in free:
+        i = PARAM_NAMES.index(n)
+        lower[i], upper[i] = LOWER[i], UPPER[i]
+    return Bounds(lower, upper)
+
+
+def _flight(seed: int = 1, duration: float = 8.0, dt: float = 0.04, still: int | None = 2) -> FlightData:
+    """Open-loop Table 2 response to random-phase multisines, the stick ``still`` held at 0 (never moves), plus
+    1 % noise."""
+    t = np.arange(0.0, duration + dt / 2, dt)
+    freqs = 0.2 * np.arange(1, 33)
+    sticks = np.stack([multisine(t, freqs[i::4], 0.05, phases="random", seed=10 * seed + i) for i in range(4)], 1)
+    if still is not None:
+        sticks[:, still] = 0.0
+    clean = np.asarray(simulate(TABLE2, FlightData(t, sticks, np.tile(np.arange(8.0), (t.size, 1)), OUTPUTS)))
+    rng = np.random.default_rng(seed)
+    outputs = clean + 0.01 * clean.std(axis=0) * rng.standard_normal(clean.shape)
+    return FlightData(t, sticks, outputs, OUTPUTS, source=f"synthetic flight {seed}, stick {still} still")
+
+
+@pytest.fixture(scope="module")
+def still_pedal():
+    """A flight whose pedal never moves, fitted by PEM from a 10 % perturbed start, then its structure."""
+    flight = _flight()
+    box = _box()
+    start = TABLE2.copy()
+    start[IDX] *= 1.0 + 0.1 * np.where(np.arange(len(IDX)) % 2, 1.0, -1.0)
+    settings = {"segment": 4.0, "lower": box.lower, "upper": box.upper}
+    fitted = pem(flight, start=start, max_steps=30, **settings)
+    return fitted, determine_structure(flight, fitted.theta, max_steps=30, **settings)
+
+
+def test_a_stick_that_never_moves_fixes_its_parameter_and_the_rest_are_recovered(still_pedal):
+    fitted, found = still_pedal
+    names = [f.name for f in found.fixed]
+    assert "Nped" in names
+    nped = found.fixed[names.index("Nped")]
+    assert nped.value == 0.0 and nped.source == "zero" and nped.relative_se == np.inf
+    assert "unresolved" in nped.reason and nped.round == 1
+    assert found.theta[PARAM_NAMES.index("Nped")] == 0.0
+    assert found.lower[PARAM_NAMES.index("Nped")] == found.upper[PARAM_NAMES.index("Nped")] == 0.0
+    kept = [i for i, n in zip(IDX, FREE) if n not in names]
+    assert len(kept) >= 9
+    np.testing.assert_allclose(found.theta[kept], TABLE2[kept], rtol=0.02)
+    # the pedal's term had no effect on the record: holding it at 0 costs nothing
+    assert found.rss <= 1.01 * found.rss_start
+    assert found.uncertainty.resolved[kept].all()
+    json.dumps(found.to_json())
+
+
+def test_nothing_is_fixed_when_every_stick_moves():
+    flight = _flight(still=None)
+    box = _box(FREE[:-1] + ("Nped",))
+    found = determine_structure(flight, TABLE2, segment=4.0, lower=box.lower, upper=box.upper, max_steps=30)
+    assert found.fixed == () and found.rounds == ()
+    np.testing.assert_array_equal(found.theta, TABLE2)
+
+
+def _linear_uncertainty(rho_target: float, scales: tuple[float, ...]):
+    """Standard errors of a linear least-squares problem in three of the 40 parameters, two of whose regressors
+    have correlation close to ``rho_target``; returns the uncertainty and the numpy covariance."""
+    rng = np.random.default_rng(0)
+    m = 400
+    a = rng.standard_normal(m)
+    b = rho_target * a + np.sqrt(1 - rho_target**2) * rng.standard_normal(m)
+    X = np.stack([a, b, rng.standard_normal(m)], 1) * np.array(scales)
+    idx = [PARAM_NAMES.index(n) for n in ("Xu", "Yv", "Lb")]
+    truth = np.array([-0.3, -0.9, 130.0])
+    y = X @ truth + 0.5 * rng.standard_normal(m)
+    box = Bounds(*(np.where(np.isin(np.arange(N_PARAMS), idx), v, TABLE2) for v in (WIDE_LOWER, WIDE_UPPER)))
+    theta_hat = np.linalg.lstsq(X, y, rcond=None)[0]
+    theta = TABLE2.copy()
+    theta[idx] = theta_hat
+    unc = from_residuals(lambda th: jnp.asarray(X) @ th[jnp.asarray(idx)] - jnp.asarray(y), theta, bounds=box)
+    resid = X @ theta_hat - y
+    cov = resid @ resid / (m - 3) * np.linalg.inv(X.T @ X)
+    return unc, cov, idx, theta_hat
+
+
+def test_the_correlation_rule_fixes_the_pair_member_with_the_larger_relative_error():
+    unc, cov, idx, theta_hat = _linear_uncertainty(0.99, (1.0, 0.2, 1.0))
+    corr = cov / np.sqrt(np.outer(np.diag(cov), np.diag(cov)))
+    rel = np.sqrt(np.diag(cov)) / np.abs(theta_hat)
+    np.testing.assert_allclose(unc.correlation[np.ix_(idx, idx)], corr, rtol=1e-6, atol=1e-9)
+    assert abs(corr[0, 1]) > 0.95
+    worse = idx[int(np.argmax(rel[:2]))]
+    chosen = select_fixed(unc, max_relative_se=10.0)  # the correlation rule alone
+    assert [c.index for c in chosen] == [worse]
+    assert chosen[0].partner == PARAM_NAMES[idx[1 - int(np.argmax(rel[:2]))]]
+    assert chosen[0].rho == pytest.approx(corr[0, 1], rel=1e-6)
+    assert "correlated with" in chosen[0].reason
+    # below the correlation threshold nothing is fixed
+    assert select_fixed(unc, max_relative_se=10.0, max_correlation=0.999) == []
+
+
+def test_an_exactly_collinear_pair_fixes_one_of_the_two():
+    rng = np.random.default_rng(1)
+    a, c = rng.standard_normal(200), rng.standard_normal(200)
+    X = np.stack([a, 2.0 * a, c], 1)  # Xu and Yv enter only as Xu + 2 Yv
+    idx = jnp.asarray([PARAM_NAMES.index(n) for n in ("Xu", "Yv", "Lb")])
+    box = Bounds(*(np.where(np.isin(np.arange(N_PARAMS), np.asarray(idx)), v, TABLE2) for v in (WIDE_LOWER, WIDE_UPPER)))
+    y = X @ np.array([-0.3, -0.9, 130.0]) + 0.1 * rng.standard_normal(200)
+    unc = from_residuals(lambda th: jnp.asarray(X) @ th[idx] - jnp.asarray(y), TABLE2, bounds=box)
+    chosen = select_fixed(unc)
+    assert len([c for c in chosen if "unresolved" in c.reason]) == 1
+    assert PARAM_NAMES[chosen[0].index] in ("Xu", "Yv")
+
+
+def test_fixed_values_prior_zero_or_nearest_bound():
+    box = Bounds()
+    lb, xu = PARAM_NAMES.index("Lb"), PARAM_NAMES.index("Xu")
+    assert fixed_value(xu, box) == (0.0, "zero")
+    assert fixed_value(lb, box) == (120.0, "bound")  # 0 is outside [120, 220]
+    prior = Prior.from_percent(TABLE2, 20.0)
+    assert fixed_value(xu, box, prior) == (pytest.approx(TABLE2[xu]), "prior")
+    far = Prior.from_percent(np.where(np.arange(N_PARAMS) == lb, 500.0, TABLE2), 20.0)
+    assert fixed_value(lb, box, far) == (220.0, "prior")
+
+
+def test_the_prior_residual_is_the_hand_computation():
+    mean = TABLE2.copy()
+    theta = TABLE2 + 0.1
+    prior = Prior.from_percent(mean, 25.0)
+    floor = FLOOR_FRACTION * (WIDE_UPPER - WIDE_LOWER)
+    by_hand = [(theta[i] - mean[i]) / (0.25 * max(abs(mean[i]), floor[i])) for i in range(N_PARAMS)]
+    np.testing.assert_allclose(np.asarray(prior.residuals(theta)), by_hand, rtol=1e-12)
+    lw = PARAM_NAMES.index("Lw")  # prior 0: the floor sets the scale
+    assert float(prior.sd[lw]) == pytest.approx(0.25 * FLOOR_FRACTION * 4.0)
+    np.testing.assert_allclose(np.asarray(prior.residuals(theta, np.array([0, 6]))), [by_hand[0], by_hand[6]])
+    with pytest.raises(ValueError):
+        Prior.from_percent(mean, 0.0)
+
+
+def test_a_tight_prior_holds_the_fit_at_the_prior():
+    flight = _flight(duration=4.0, still=None)
+    box = _box(("Xu", "Lb"))
+    start = TABLE2.copy()
+    start[PARAM_NAMES.index("Lb")] = 150.0
+    away = np.where(np.arange(N_PARAMS) == PARAM_NAMES.index("Lb"), 180.0, TABLE2)
+    settings = {"segment": 4.0, "lower": box.lower, "upper": box.upper, "start": start, "max_steps": 30}
+    free = pem(flight, **settings)
+    held = pem(flight, prior=Prior.from_percent(away, 0.01), **settings)
+    lb = PARAM_NAMES.index("Lb")
+    assert abs(free.theta[lb] - TABLE2[lb]) < 2.0
+    assert abs(held.theta[lb] - 180.0) < 0.5
+    assert held.settings["prior"] and not free.settings["prior"]
+
+
+def test_the_wide_box_is_the_physical_ranges():
+    wide = named_box("wide")
+    np.testing.assert_array_equal(np.asarray(wide.lower), np.minimum(WIDE_LOWER, LOWER))
+    np.testing.assert_array_equal(np.asarray(wide.upper), np.maximum(WIDE_UPPER, UPPER))
+    assert bool(np.all(np.asarray(wide.free)))  # no parameter pinned
+    authors = named_box("authors")
+    np.testing.assert_array_equal(np.asarray(authors.lower), LOWER)
+    with pytest.raises(ValueError):
+        named_box("narrow")
