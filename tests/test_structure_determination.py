@@ -10,10 +10,15 @@ import pytest
 from jaxheli.bounds import Bounds, named_box
 from jaxheli.data.flight import FlightData
 from jaxheli.model import LOWER, N_PARAMS, PARAM_NAMES, TABLE2, UPPER, WIDE_LOWER, WIDE_UPPER
+from jaxheli.cli.identify import print_fixed
+from jaxheli.identify import identify
 from jaxheli.optim.pem import pem
 from jaxheli.optim.prior import FLOOR_FRACTION, Prior
 from jaxheli.optim.structure import determine_structure, fixed_value, select_fixed
 from jaxheli.optim.uncertainty import from_residuals
+from jaxheli.report import load_results
+from jaxheli.report.sections import parameters
+from jaxheli.results import save_result
 from jaxheli.sim.simulate import simulate
 from jaxheli.synth.excitation import multisine
 
@@ -48,32 +53,59 @@ def _flight(seed: int = 1, duration: float = 8.0, dt: float = 0.04, still: int |
 
 @pytest.fixture(scope="module")
 def still_pedal():
-    """A flight whose pedal never moves, fitted by PEM from a 10 % perturbed start, then its structure."""
+    """A flight whose pedal never moves, identified by PEM from a 10 % perturbed start with the structure
+    determined (the rest of the box pinned at the truth)."""
     flight = _flight()
     box = _box()
     start = TABLE2.copy()
     start[IDX] *= 1.0 + 0.1 * np.where(np.arange(len(IDX)) % 2, 1.0, -1.0)
-    settings = {"segment": 4.0, "lower": box.lower, "upper": box.upper}
-    fitted = pem(flight, start=start, max_steps=30, **settings)
-    return fitted, determine_structure(flight, fitted.theta, max_steps=30, **settings)
+    return flight, identify(flight, method="pem", lower=np.asarray(box.lower), upper=np.asarray(box.upper),
+                            start=start, pem_segment=4.0, structure=True, progress=False)
 
 
 def test_a_stick_that_never_moves_fixes_its_parameter_and_the_rest_are_recovered(still_pedal):
-    fitted, found = still_pedal
-    names = [f.name for f in found.fixed]
-    assert "Nped" in names
-    nped = found.fixed[names.index("Nped")]
-    assert nped.value == 0.0 and nped.source == "zero" and nped.relative_se == np.inf
-    assert "unresolved" in nped.reason and nped.round == 1
-    assert found.theta[PARAM_NAMES.index("Nped")] == 0.0
-    assert found.lower[PARAM_NAMES.index("Nped")] == found.upper[PARAM_NAMES.index("Nped")] == 0.0
-    kept = [i for i, n in zip(IDX, FREE) if n not in names]
-    assert len(kept) >= 9
-    np.testing.assert_allclose(found.theta[kept], TABLE2[kept], rtol=0.02)
+    _, result = still_pedal
+    assert list(result.fixed) == ["Nped"]
+    nped = result.fixed["Nped"]
+    assert nped["value"] == 0.0 and nped["source"] == "zero" and nped["relative_se"] == "inf"
+    assert "unresolved" in nped["reason"] and nped["round"] == 1
+    i = PARAM_NAMES.index("Nped")
+    assert result.params[i] == 0.0 and result.stderr["Nped"] == 0.0  # held, no longer estimated
+    kept = [i for i, n in zip(IDX, FREE) if n != "Nped"]
+    np.testing.assert_allclose(result.params[kept], TABLE2[kept], rtol=0.02)
+    assert all(0 < result.stderr[n] < 0.05 * abs(TABLE2[PARAM_NAMES.index(n)]) for n in FREE if n != "Nped")
     # the pedal's term had no effect on the record: holding it at 0 costs nothing
-    assert found.rss <= 1.01 * found.rss_start
-    assert found.uncertainty.resolved[kept].all()
-    json.dumps(found.to_json())
+    structure = result.structure
+    assert structure["rss"] <= 1.01 * structure["rss_start"] and len(structure["rounds"]) == 1
+    assert result.settings["structure"] and result.settings["prior"] is None
+
+
+def test_result_json_round_trips_fixed(still_pedal, tmp_path):
+    flight, result = still_pedal
+    save_result(result, tmp_path, flight)
+    content = json.loads((tmp_path / "result.json").read_text())
+    assert content["fixed"] == json.loads(json.dumps(result.fixed))
+    assert content["structure"]["rounds"][0]["fixed"] == ["Nped"]
+    assert "Nped" not in {a["name"] for a in content["at_bounds"]}
+    body = parameters(load_results([tmp_path]))
+    assert "<caption>fixed parameters</caption>" in body and "<caption>parameters at bounds</caption>" in body
+    assert '<td class="text">Nped</td><td class="text">zero</td>' in body
+    assert f"{0.0:.4g} (fixed)" in body
+
+
+def test_structure_needs_a_least_squares_fit():
+    with pytest.raises(ValueError, match="structure=True needs a least-squares fit"):
+        identify(_flight(duration=1.0), method="iwo", structure=True, iterations=1)
+
+
+def test_the_console_prints_one_line_per_fixed_parameter(still_pedal, capsys):
+    _, result = still_pedal
+    print_fixed(result.fixed, result.structure)
+    print_fixed(None, None)
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("fixed parameters (model-structure determination): 1; output-error sum of squares")
+    assert lines[1].startswith("  Nped = 0 (zero, round 1): unresolved")
+    assert lines[2] == "fixed parameters (model-structure determination): not run (--structure)"
 
 
 def test_nothing_is_fixed_when_every_stick_moves():
