@@ -103,7 +103,8 @@ def test_the_console_prints_one_line_per_fixed_parameter(still_pedal, capsys):
     print_fixed(result.fixed, result.structure)
     print_fixed(None, None)
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0].startswith("fixed parameters (model-structure determination): 1; output-error sum of squares")
+    assert lines[0].startswith("fixed parameters (model-structure determination): 1; sum of squares")
+    assert lines[0].endswith("1 of 1 re-fits accepted")
     assert lines[1].startswith("  Nped = 0 (zero, round 1): unresolved")
     assert lines[2] == "fixed parameters (model-structure determination): not run (--structure)"
 
@@ -114,6 +115,24 @@ def test_nothing_is_fixed_when_every_stick_moves():
     found = determine_structure(flight, TABLE2, segment=4.0, lower=box.lower, upper=box.upper, max_steps=30)
     assert found.fixed == () and found.rounds == ()
     np.testing.assert_array_equal(found.theta, TABLE2)
+
+
+def test_a_fix_that_raises_the_sum_of_squares_is_refused():
+    """With every parameter a candidate (a tiny threshold), the round's test refuses fixing the determined ones and
+    keeps the unresolved one's fix alone."""
+    flight = _flight(duration=4.0)
+    box = _box(("Lb", "Ma", "Nped"))
+    found = determine_structure(flight, TABLE2, segment=4.0, lower=box.lower, upper=box.upper, max_steps=20,
+                                max_relative_se=1e-9, max_rounds=1)
+    tries = [(t["fixed"], t["accepted"]) for t in found.rounds]
+    # fixing all three would leave nothing free: not tried; Nped with the worse of Lb, Ma refused, Nped alone kept
+    assert len(tries) == 2 and tries[0][0][0] == "Nped" and len(tries[0][0]) == 2 and tries[0][1] is False
+    assert tries[1] == (["Nped"], True)
+    assert [f.name for f in found.fixed] == ["Nped"]
+    refused = found.rounds[0]
+    assert refused["rise_sigma2"] > refused["limit"] > 0
+    np.testing.assert_allclose(found.theta[[PARAM_NAMES.index("Lb"), PARAM_NAMES.index("Ma")]],
+                               TABLE2[[PARAM_NAMES.index("Lb"), PARAM_NAMES.index("Ma")]], rtol=0.01)
 
 
 def _linear_uncertainty(rho_target: float, scales: tuple[float, ...]):

@@ -219,15 +219,21 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
 def print_fixed(fixed: dict | None, structure: dict | None) -> None:
     """The model-structure determination on the console: one line per fixed parameter (value, where it comes
-    from, why), and the output-error sum of squares before and after."""
+    from, why), the local fit's sum of squares before and after, and the re-fits its test accepted; one line per
+    set a test refused."""
     if fixed is None:
         print("fixed parameters (model-structure determination): not run (--structure)")
         return
-    rss = "" if structure is None else (f"; output-error sum of squares {structure['rss_start']:.6g} -> "
-                                        f"{structure['rss']:.6g} over {len(structure['rounds'])} re-fit(s)")
+    tries = [] if structure is None else structure["rounds"]
+    rss = "" if structure is None else (f"; sum of squares {structure['rss_start']:.6g} -> {structure['rss']:.6g}, "
+                                        f"{sum(t['accepted'] for t in tries)} of {len(tries)} re-fits accepted")
     print(f"fixed parameters (model-structure determination): {len(fixed) or 'none'}{rss}")
     for name, f in fixed.items():
         print(f"  {name} = {f['value']:.4g} ({f['source']}, round {f['round']}): {f['reason']}")
+    for t in tries:
+        if not t["accepted"]:
+            print(f"  kept free (round {t['round']}): fixing {', '.join(t['fixed'])} raised the sum of squares by "
+                  f"{t['rise_sigma2']:.4g} s^2 > {t['limit']:.4g}")
 
 
 def _cmd_synth(args: argparse.Namespace) -> int:
