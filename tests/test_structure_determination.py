@@ -177,7 +177,8 @@ def test_an_exactly_collinear_pair_fixes_one_of_the_two():
     a, c = rng.standard_normal(200), rng.standard_normal(200)
     X = np.stack([a, 2.0 * a, c], 1)  # Xu and Yv enter only as Xu + 2 Yv
     idx = jnp.asarray([PARAM_NAMES.index(n) for n in ("Xu", "Yv", "Lb")])
-    box = Bounds(*(np.where(np.isin(np.arange(N_PARAMS), np.asarray(idx)), v, TABLE2) for v in (WIDE_LOWER, WIDE_UPPER)))
+    free = np.isin(np.arange(N_PARAMS), np.asarray(idx))
+    box = Bounds(*(np.where(free, v, TABLE2) for v in (WIDE_LOWER, WIDE_UPPER)))
     y = X @ np.array([-0.3, -0.9, 130.0]) + 0.1 * rng.standard_normal(200)
     unc = from_residuals(lambda th: jnp.asarray(X) @ th[idx] - jnp.asarray(y), TABLE2, bounds=box)
     chosen = select_fixed(unc)
