@@ -235,3 +235,34 @@ def test_the_wide_box_is_the_physical_ranges():
     np.testing.assert_array_equal(np.asarray(authors.lower), LOWER)
     with pytest.raises(ValueError):
         named_box("narrow")
+
+
+class _Stop(Exception):
+    """Raised by the stand-in for identify once it has seen its arguments."""
+
+
+def test_the_command_line_passes_the_box_the_structure_and_the_prior(monkeypatch, tmp_path):
+    import importlib
+
+    from jaxheli.cli import main
+    from jaxheli.io import save_npz
+
+    seen = {}
+
+    def fake(train, **options):
+        seen.update(options)
+        raise _Stop
+
+    monkeypatch.setattr(importlib.import_module("jaxheli.identify"), "identify", fake)  # the module, not the function
+    data = save_npz(_flight(duration=1.0), tmp_path / "flight.npz")
+    args = ["identify", "--data", str(data), "--method", "pem", "--out", str(tmp_path / "out")]
+    with pytest.raises(_Stop):
+        main(args + ["--box", "wide", "--structure", "--prior", "table2", "--prior-sd", "20"])
+    np.testing.assert_array_equal(seen["lower"], np.minimum(WIDE_LOWER, LOWER))
+    np.testing.assert_array_equal(seen["upper"], np.maximum(WIDE_UPPER, UPPER))
+    assert seen["structure"] is True and seen["prior"] == "table2" and seen["prior_sd"] == 20.0
+    with pytest.raises(_Stop):
+        main(args)
+    np.testing.assert_array_equal(seen["lower"], LOWER)
+    np.testing.assert_array_equal(seen["upper"], UPPER)
+    assert seen["structure"] is False and seen["prior"] is None
