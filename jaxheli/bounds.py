@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._types import Array, ArrayLike, Bool, Float, Params
-from .model import LOWER, PARAM_NAMES, UPPER
+from .model import LOWER, PARAM_NAMES, UPPER, WIDE_LOWER, WIDE_UPPER
 
 Free = Bool[ArrayLike, "40"] | Sequence[str] | None
 """Free parameters: a mask over :data:`PARAM_NAMES`, a list of names, or ``None`` for every non-pinned one."""
@@ -142,3 +142,28 @@ class Bounds(eqx.Module):
     def to_dict(self) -> dict[str, list[float]]:
         """``{"lower": [...], "upper": [...]}`` in :data:`PARAM_NAMES` order (JSON-ready)."""
         return {"lower": np.asarray(self.lower, np.float64).tolist(), "upper": np.asarray(self.upper, np.float64).tolist()}
+
+
+def physical_box(box: Bounds) -> Bounds | None:
+    """``box`` widened to the physical ranges (:data:`~jaxheli.model.WIDE_LOWER`, :data:`~jaxheli.model.WIDE_UPPER`;
+    pinned axes freed, no bound narrowed), or ``None`` when it already holds them."""
+    lower, upper = np.asarray(box.lower, np.float64), np.asarray(box.upper, np.float64)
+    wide_lower, wide_upper = np.minimum(WIDE_LOWER, lower), np.maximum(WIDE_UPPER, upper)
+    if np.array_equal(wide_lower, lower) and np.array_equal(wide_upper, upper):
+        return None
+    return Bounds(wide_lower, wide_upper)
+
+
+BOXES: tuple[str, ...] = ("authors", "wide")
+"""Named search boxes: ``"authors"`` (their ``config_iwo.m``, :data:`~jaxheli.model.LOWER` / ``UPPER``, five hover
+terms pinned at 0) and ``"wide"`` (the authors' box widened to the physical ranges, pinned terms freed:
+:func:`physical_box`)."""
+
+
+def named_box(name: str) -> Bounds:
+    """The search box called ``name`` (:data:`BOXES`)."""
+    if name == "authors":
+        return Bounds()
+    if name == "wide":
+        return physical_box(Bounds()) or Bounds()
+    raise ValueError(f"box must be one of {BOXES}, got {name!r}")

@@ -16,6 +16,7 @@ import inspect
 import time
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any, Literal
 
 import jax
@@ -26,7 +27,7 @@ from ._progress import stage
 from ._types import Float
 from .cost import SearchCost
 from .data.flight import FlightData, constant_outputs, default_outputs
-from .evaluate import evaluate, search_cost_of
+from .evaluate import evaluate, resolve_params, search_cost_of
 from .model import G_SI, LOWER, PARAM_NAMES, UPPER
 from .optim.frequency_fit import FrequencyFitResult, IncoherentFlight, cifer_report, frequency_fit
 from .optim.ga import GA
@@ -34,12 +35,17 @@ from .optim.iwo import IWO
 from .optim.pem import PEMResult, pem
 from .optim.output_error import output_error_problem
 from .optim.polish import PolishObjective, polish
+from .optim.prior import Prior
+from .optim.structure import LocalFit, determine_structure
 from .optim.run import minimize, minimize_trials
 from .optim.uncertainty import Uncertainty, cramer_rao_coverage, standard_errors
 from .problem import Problem, Records, as_problem, make_problem, parts
 
 Method = Literal["iwo", "ga", "pem", "iwo+polish", "freq", "freq+polish", "iwo+freq+polish"]
 METHODS: tuple[str, ...] = ("iwo", "ga", "pem", "iwo+polish", "freq", "freq+polish", "iwo+freq+polish")
+PRIOR_SD = 50.0
+"""Default standard deviation of a prior model, percent of each value (floored, :mod:`jaxheli.optim.prior`): a weak
+prior, which a record that determines a parameter overrules; a tighter one is a choice to state (``prior_sd``)."""
 
 
 @dataclasses.dataclass
@@ -66,6 +72,11 @@ class IdentificationResult:
         frequency: frequency methods: Tischler's ``J`` per (input, output) pair at ``params``, their bins, the
             average ``J`` and ``acceptable`` (``<= 100``), with the best trial's frequency fit under ``"fit"``
             (its own ``J``s, starts, band; :class:`~jaxheli.optim.frequency_fit.FrequencyFitResult`); else ``None``.
+        fixed: with ``structure=True``, the parameters the model-structure determination fixed,
+            ``{name: {"value", "reason", "round", "relative_se", "partner", "rho", "source"}}``
+            (:class:`~jaxheli.optim.structure.FixedParameter`; empty when it fixed none); else ``None``.
+        structure: its rounds, the output-error sums of squares before and after, and its settings
+            (:meth:`~jaxheli.optim.structure.StructureResult.to_json` without ``fixed``); else ``None``.
     """
 
     method: str
@@ -83,6 +94,8 @@ class IdentificationResult:
     seconds: float
     truth: dict[str, Any] | None = None
     frequency: dict[str, Any] | None = None
+    fixed: dict[str, dict[str, Any]] | None = None
+    structure: dict[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready content (``result.json``); parameters and intervals named as in :data:`PARAM_NAMES`."""
@@ -100,6 +113,8 @@ class IdentificationResult:
             "seconds": self.seconds,
             "truth": self.truth,
             "frequency": self.frequency,
+            "fixed": self.fixed,
+            "structure": self.structure,
         }
 
 
@@ -137,6 +152,9 @@ def identify(
     engine_options: dict[str, Any] | None = None,
     freq_options: dict[str, Any] | None = None,
     truth: Float[np.ndarray, "40"] | None = None,
+    structure: bool = False,
+    prior: str | Float[np.ndarray, "40"] | dict | None = None,
+    prior_sd: float = PRIOR_SD,
     chunk: int = 50,
     checkpoint: str | None = None,
     resume: bool = False,
@@ -187,12 +205,25 @@ def identify(
         truth: the true parameters when known (default: a synthetic flight's ``metadata["truth"]`` when it
             carries no unmodelled effect); scored beside the result, with the share of identifiable parameters
             within 3 Cramer-Rao standard errors of it.
+        structure: after the fit, determine the model structure (:func:`~jaxheli.optim.structure.
+            determine_structure`): parameters the record cannot determine (unresolved, relative Cramer-Rao bound
+            above 20 %, or the worse of a pair correlated above 0.95) are fixed (to the prior's value, else 0 or the
+            nearest bound) and the method's local fit (PEM; the polish's output error or PEM) repeated with them
+            pinned, until nothing more is fixed; ``params``, ``stderr`` and the scores are the re-fit's. Needs a
+            least-squares fit: ``method="pem"`` or a ``+polish`` method whose ``polish_objective`` is not
+            ``"pearson"``.
+        prior, prior_sd: a prior model (anything :func:`jaxheli.evaluate.resolve_params` reads: a result.json, a
+            name such as ``"table2"``, 40 values) and its standard deviation in percent of each value (floored,
+            :mod:`jaxheli.optim.prior`): its residuals join those of every local fit (PEM, the polish; not the
+            population search or the frequency fit), and fixed parameters take its values.
         chunk, checkpoint, resume, progress: run control of :func:`jaxheli.optim.run.minimize`.
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if trials < 1 or iterations < 1:
         raise ValueError(f"trials and iterations must be >= 1, got {trials}, {iterations}")
+    local_fit = _local_fit(method, polish_objective) if structure else None
+    belief = None if prior is None else Prior.from_percent(resolve_params(prior), prior_sd)
     given = {"outputs": outputs, "segment": segment, "hold": hold, "g": g, "lower": lower, "upper": upper,
              "cost": cost, "search_precision": search_precision}
     if isinstance(data, (Problem, Records)):
@@ -207,7 +238,7 @@ def identify(
     polish_info = fits = skipped = None
     if method == "pem":
         fitted = problem.variant(segment=pem_segment, x0="measured")
-        trial_params, trial_costs = _pem_trials(fitted, key, trials, start)
+        trial_params, trial_costs = _pem_trials(fitted, key, trials, start, belief)
         scored = fitted
     else:
         search = problem.variant(x0="zero")
@@ -233,16 +264,29 @@ def identify(
         fitted = scored = search
         if method.endswith("+polish"):
             trial_params, trial_costs, polish_info = _polish_trials(
-                search, trial_params, trial_costs, polish_objective, polish_steps, polish_rounds, searched)
+                search, trial_params, trial_costs, polish_objective, polish_steps, polish_rounds, searched, belief)
         if (method.endswith("+polish") and polish_objective == "output-error") or method == "freq":
             # standard errors with restarts where unstable: a frequency fit may diverge over one run from rest
             fitted = output_error_problem(search, trial_params[int(np.argmin(trial_costs))])
     best = int(np.argmin(trial_costs))
     params = trial_params[best]
+    found = None
+    if local_fit is not None:
+        with stage("model-structure determination: fix poorly determined parameters and re-fit") as now:
+            found = determine_structure(fitted if method == "pem" else search, params, local_fit=local_fit,
+                                        prior=belief, max_steps=200 if method == "pem" else polish_steps,
+                                        rounds=polish_rounds)
+            now.outcome = f"{len(found.fixed_dict())} fixed"
+        params = found.theta
+        if local_fit == "output-error":
+            fitted = output_error_problem(search, params)
     seconds = time.perf_counter() - t0
-    with stage("standard errors (Cramer-Rao) at the best parameters") as now:
-        unc = standard_errors(fitted, params, nonfinite="unresolved")
-        now.outcome = f"{int(np.sum(np.isfinite(unc.stderr) & (unc.stderr > 0)))} parameters resolved"
+    if found is None:
+        with stage("standard errors (Cramer-Rao) at the best parameters") as now:
+            unc = standard_errors(fitted, params, nonfinite="unresolved")
+            now.outcome = f"{int(np.sum(np.isfinite(unc.stderr) & (unc.stderr > 0)))} parameters resolved"
+    else:
+        unc = found.uncertainty
     record = {
         "method": method, "iterations": iterations, "trials": trials, "outputs": list(problem.outputs),
         "segment": settings.segment, "hold": settings.hold, "g": settings.g, "pem_segment": pem_segment,
@@ -253,6 +297,8 @@ def identify(
         "x64": bool(jax.config.jax_enable_x64), "search_precision": settings.precision,
         "engine_options": dict(engine_options or {}), "freq_options": dict(freq_options or {}),
         "frequency_skipped": skipped,
+        "structure": bool(structure), "prior": None if prior is None else _describe_prior(prior),
+        "prior_sd": None if prior is None else float(prior_sd),
         "evaluations": evaluations,
         "standard_errors": [part.sim.describe() for part in parts(fitted)],
     }
@@ -275,7 +321,26 @@ def identify(
             seconds=seconds,
             truth=None if truth is None else _truth_block(truth, unc, scored, validate, problem),
             frequency=None if fits is None else _frequency_block(fits, params),
+            fixed=None if found is None else found.fixed_dict(),
+            structure=None if found is None else {k: v for k, v in found.to_json().items() if k != "fixed"},
         )
+
+
+def _local_fit(method: str, polish_objective: PolishObjective) -> LocalFit:
+    """The least-squares fit the structure determination repeats for ``method``; raises where there is none."""
+    if method == "pem":
+        return "pem"
+    if method.endswith("+polish") and polish_objective in ("output-error", "pem"):
+        return polish_objective
+    raise ValueError(f"identify: structure=True needs a least-squares fit to repeat: method 'pem' or a '+polish' "
+                     f"method with polish_objective 'output-error' or 'pem' (got {method!r}, {polish_objective!r})")
+
+
+def _describe_prior(prior: Any) -> str | list[float]:
+    """How ``settings`` records the prior model: its name or file, else its 40 values."""
+    if isinstance(prior, (str, Path)):
+        return str(prior)
+    return resolve_params(prior).tolist()
 
 
 def scores(params: Float[np.ndarray, "40"], problem: Problem | Records) -> dict[str, Any]:
@@ -304,7 +369,7 @@ def _population_trials(
 
 def _polish_trials(
     search: Problem | Records, trial_params: np.ndarray, trial_costs: np.ndarray, objective: PolishObjective,
-    steps: int, rounds: int, also: np.ndarray | None = None,
+    steps: int, rounds: int, also: np.ndarray | None = None, prior: Prior | None = None,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """Polish every trial (with ``also[k]``, a second start of trial ``k``, where given: the output-error polish's
     first round tries both); each trial's cost becomes its polished objective (the paper's cost for ``"pearson"``,
@@ -315,7 +380,7 @@ def _polish_trials(
         with stage(f"polish of trial {k + 1} of {len(starts)} on the {objective} objective, "
                    + (f"up to {rounds} rounds of " if objective == "output-error" else "")
                    + f"{steps} LM steps") as now:
-            polished.append(polish(th, search, objective=objective, max_steps=steps, rounds=rounds))
+            polished.append(polish(th, search, objective=objective, max_steps=steps, rounds=rounds, prior=prior))
             now.outcome = f"{polished[-1].n_steps} steps"
     costs = np.array([p.cost if objective == "pearson" else p.rss / search.n_samples for p in polished])
     before, after = int(np.argmin(trial_costs)), int(np.argmin(costs))
@@ -434,10 +499,12 @@ def validation_block(
     return scores(params, make_problem(flight, outputs=chans, **options))
 
 
-def _pem_trials(problem: Problem | Records, key, trials: int, start) -> tuple[np.ndarray, np.ndarray]:
+def _pem_trials(
+    problem: Problem | Records, key, trials: int, start, prior: Prior | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """PEM from the given start (or the middle of the box), plus random starts in the box for further trials."""
     mid = problem.bounds.midpoint() if start is None else np.asarray(start, dtype=np.float64)
     starts = [mid] + list(problem.bounds.uniform(k, 1)[0] for k in jax.random.split(key, trials - 1)) \
         if trials > 1 else [mid]
-    fits = [pem(problem, start=s) for s in starts]
+    fits = [pem(problem, start=s, prior=prior) for s in starts]
     return np.stack([f.theta for f in fits]), np.array([f.cost for f in fits])

@@ -37,8 +37,10 @@ def result_modes(result: IdentificationResult) -> tuple[Mode, ...]:
 
 def result_at_bounds(result: IdentificationResult) -> tuple[AtBound, ...]:
     """The identified parameters on a bound of the search box (:func:`jaxheli.at_bounds.at_bounds`): the box the
-    settings record, else the authors' (the only box the command line searches)."""
-    return at_bounds(result.params, result.settings.get("lower", LOWER), result.settings.get("upper", UPPER))
+    settings record, else the authors'; parameters the model-structure determination fixed (``result.fixed``) are
+    listed there instead, even when the value they are held at is a bound."""
+    found = at_bounds(result.params, result.settings.get("lower", LOWER), result.settings.get("upper", UPPER))
+    return tuple(a for a in found if a.name not in (result.fixed or {}))
 
 
 def _verification(result: IdentificationResult, flight: FlightData, x0, path: Path, title: str) -> Path:
@@ -80,8 +82,9 @@ def save_result(
     """Save ``result`` under ``out_dir``; returns the files written.
 
     Writes ``result.json`` (with each flight's source, preprocessing steps and load warnings under
-    ``provenance``, the model's ``modes`` (:func:`result_modes`) and the parameters on a bound, ``at_bounds``
-    (:func:`result_at_bounds`)), ``result.npz``, ``train_flight.npz`` / ``validate_flight.npz`` (the flights as the
+    ``provenance``, the model's ``modes`` (:func:`result_modes`), the parameters on a bound, ``at_bounds``
+    (:func:`result_at_bounds`), and those the model-structure determination fixed, ``fixed``
+    (``{name: {value, reason, ...}}``, ``null`` when it did not run)), ``result.npz``, ``train_flight.npz`` / ``validate_flight.npz`` (the flights as the
     fit and the scores saw them; further training records as ``train_flight_2.npz``, ... listed in
     ``data["train_records"]``) and the PNG plots (time-domain verification per record, convergence with the polish rounds, and for the
     frequency methods flight against model frequency responses).

@@ -6,9 +6,12 @@ import argparse
 import json
 from pathlib import Path
 
+import numpy as np
+
 from ..cost import SEARCH_COSTS
 from ..flights import DEFAULT_DATA
-from ..identify import METHODS
+from ..bounds import BOXES, named_box
+from ..identify import METHODS, PRIOR_SD
 from ..optim.polish import POLISH_OBJECTIVES
 from ._options import (add_data_option, add_flight_option, add_load_options, add_sim_options, outputs, read_flight,
                        sim_options)
@@ -47,6 +50,19 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                    help="Levenberg-Marquardt steps per polish round (default 100)")
     p.add_argument("--polish-rounds", type=int, default=4,
                    help="output-error polish: at most this many rounds, the first on 5 s then 20 s runs (default 4)")
+    p.add_argument("--box", choices=BOXES, default="authors",
+                   help="search box: authors (default, their config_iwo.m; Lw, Mw, Nw, Yped, Mcol pinned at 0) or wide "
+                        "(the physical ranges, jaxheli.model.WIDE_LOWER/UPPER, every parameter free)")
+    p.add_argument("--structure", action="store_true",
+                   help="model-structure determination after the fit: fix the parameters the flight cannot "
+                        "determine (unresolved, relative Cramer-Rao bound > 20 %%, or the worse of a pair correlated "
+                        "> 0.95) to the prior, 0 or the nearest bound and re-fit (methods pem and *+polish)")
+    p.add_argument("--prior", default=None, metavar="MODEL",
+                   help="a prior model (result.json or table2): a Gaussian prior in the local fits (PEM, polish) "
+                        "and the values --structure fixes parameters at")
+    p.add_argument("--prior-sd", type=float, default=PRIOR_SD, metavar="PCT",
+                   help=f"the prior's standard deviation, %% of each value, floored at 1 %% of the parameter's "
+                        f"physical range (default {PRIOR_SD:g})")
     p.add_argument("--freq-starts", type=int, default=8, metavar="K",
                    help="freq: Levenberg-Marquardt starts, the best of --freq-screen draws in the box (default 8)")
     p.add_argument("--freq-screen", type=int, default=2000, metavar="S",
@@ -142,6 +158,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     validate = None if not args.validate else read_flight(args.validate, args)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    box = named_box(args.box)
     result = identify(
         train,
         method=args.method,
@@ -159,6 +176,11 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         chunk=args.checkpoint_every,
         search_precision=args.search_precision,
+        lower=np.asarray(box.lower, np.float64),
+        upper=np.asarray(box.upper, np.float64),
+        structure=args.structure,
+        prior=args.prior,
+        prior_sd=args.prior_sd,
         freq_options={"starts": args.freq_starts, "screen": args.freq_screen, "max_steps": args.freq_steps,
                       "band": None if args.freq_band is None else tuple(args.freq_band)},
         **sim_options(args),
@@ -191,10 +213,30 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     bounded = ", ".join(f"{a.name} {a.value:.4g} ({a.side} {a.bound:g})" for a in result_at_bounds(result))
     print(f"parameters on a bound of the search box (within {100 * TOLERANCE:g} % of its width; the box, not the "
           f"flight, set them): {bounded or 'none'}")
+    print_fixed(result.fixed, result.structure)
     print(f"fit: {result.seconds:.1f} s")
     for path in save_result(result, out, train, validate):
         print(f"wrote {path}")
     return 0
+
+
+def print_fixed(fixed: dict | None, structure: dict | None) -> None:
+    """The model-structure determination on the console: one line per fixed parameter (value, where it comes
+    from, why), the local fit's sum of squares before and after, and the re-fits its test accepted; one line per
+    set a test refused."""
+    if fixed is None:
+        print("fixed parameters (model-structure determination): not run (--structure)")
+        return
+    tries = [] if structure is None else structure["rounds"]
+    rss = "" if structure is None else (f"; sum of squares {structure['rss_start']:.6g} -> {structure['rss']:.6g}, "
+                                        f"{sum(t['accepted'] for t in tries)} of {len(tries)} re-fits accepted")
+    print(f"fixed parameters (model-structure determination): {len(fixed) or 'none'}{rss}")
+    for name, f in fixed.items():
+        print(f"  {name} = {f['value']:.4g} ({f['source']}, round {f['round']}): {f['reason']}")
+    for t in tries:
+        if not t["accepted"]:
+            print(f"  kept free (round {t['round']}): fixing {', '.join(t['fixed'])} raised the sum of squares by "
+                  f"{t['rise_sigma2']:.4g} s^2 > {t['limit']:.4g}")
 
 
 def _cmd_synth(args: argparse.Namespace) -> int:

@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._progress import note, stage
-from ..bounds import Bounds
+from ..bounds import Bounds, physical_box
 from ..effects.plant import no_effect
 from ..model import PARAM_NAMES, WIDE_LOWER, WIDE_UPPER
 from .fit_effect import EffectRows, embed, fitted_nuisance, score
@@ -31,15 +31,6 @@ LEFT_BOX = THRESHOLDS.left_box
 """Fraction of a parameter's physical range (:data:`~jaxheli.model.WIDE_LOWER` to
 :data:`~jaxheli.model.WIDE_UPPER`) by which a widened re-fit must leave the box for that parameter to count as
 freed or beyond its bound (a solver's last step across a bound is not structure)."""
-
-
-def physical_box(box: Bounds) -> Bounds | None:
-    """``box`` widened to the physical ranges (pinned axes freed), or ``None`` when it already holds them."""
-    lower, upper = np.asarray(box.lower, np.float64), np.asarray(box.upper, np.float64)
-    wide_lower, wide_upper = np.minimum(WIDE_LOWER, lower), np.maximum(WIDE_UPPER, upper)
-    if np.array_equal(wide_lower, lower) and np.array_equal(wide_upper, upper):
-        return None
-    return Bounds(wide_lower, wide_upper)
 
 
 def structure_hypothesis(

@@ -33,6 +33,7 @@ from ..bounds import Free
 from ..model import build_ab
 from ..problem import Problem, Records, parts
 from .pem import PEMResult, Solver, fit
+from .prior import Prior
 
 GROWTH = 1e3
 """Largest growth of the fastest unstable mode over one simulated run of the rounds after the ladder."""
@@ -101,6 +102,7 @@ def output_error(
     free: Free = None,
     rtol: float = 1e-8,
     atol: float = 1e-8,
+    prior: Prior | None = None,
 ) -> PEMResult:
     """Fit ``problem``'s record by output error from ``start[40]`` in at most ``rounds`` rounds (see the module).
 
@@ -109,7 +111,7 @@ def output_error(
 
     ``problem``'s scored channels, hold, g and box apply (its restarts and initial states are replaced; each
     record of a :class:`~jaxheli.problem.Records` gets its own); ``solver``, ``max_steps`` (per round), ``free``,
-    ``rtol``, ``atol`` as in :func:`jaxheli.optim.pem.pem`. The result's ``rss_start`` / ``cost_start`` are those
+    ``rtol``, ``atol``, ``prior`` as in :func:`jaxheli.optim.pem.pem`. The result's ``rss_start`` / ``cost_start`` are those
     of the first round's simulation, ``rss`` / ``cost`` those of the last; ``settings["rounds"]`` lists each
     round's restart intervals, sums of squares, steps and solver result. Never worse than the start on any
     round's objective.
@@ -125,7 +127,7 @@ def output_error(
         tried = []
         for theta in thetas:
             chosen = runs if ladder else output_error_problem(problem, theta)
-            tried.append((fit(chosen, theta, "pem", solver, max_steps, free, rtol, atol), chosen))
+            tried.append((fit(chosen, theta, "pem", solver, max_steps, free, rtol, atol, prior), chosen))
         res, chosen = min(tried, key=lambda pair: pair[0].rss)
         history.append({"segment_s": [p.settings.segment for p in parts(chosen)], "ladder": ladder,
                         "rss_start": res.rss_start, "rss": res.rss, "n_steps": res.n_steps, "result": res.result,

@@ -41,6 +41,7 @@ from ..data.flight import FlightData
 from ..model import N_PARAMS, PARAM_NAMES
 from ..problem import Problem, Records, as_problem, parts
 from .boxed_lm import FreeAxes, Solver, boxed_least_squares, least_squares_solver
+from .prior import Prior
 
 _BIG = 1e3
 """Normalised residual (signal standard deviations) past which it is compressed logarithmically."""
@@ -103,20 +104,30 @@ class _Boxed(eqx.Module):
     problem: Problem | Records
     axes: FreeAxes
     objective: Objective = eqx.field(static=True)
+    prior: Prior | None = None
 
     def of_outputs(self, part: Problem, y: Float[Array, "*batch N k"]) -> Float[Array, "*batch m"]:
         """The objective's residuals of one record's outputs."""
         return (pem_residuals if self.objective == "pem" else pearson_residuals)(part, y)
 
+    def of_prior(self, theta: Float[Array, "40"]) -> Float[Array, " n"]:
+        """The prior's residuals over the free axes (none without a prior, :mod:`jaxheli.optim.prior`)."""
+        if self.prior is None:
+            return jnp.zeros((0,), theta.dtype)
+        return self.prior.residuals(theta, np.flatnonzero(np.array(self.axes.free)))
+
 
 def _residual(v: Array, boxed: _Boxed) -> Array:
     theta = boxed.axes.theta(v)
-    return jnp.concatenate([boxed.of_outputs(part, part.sim(theta)) for part in parts(boxed.problem)])
+    return jnp.concatenate([boxed.of_outputs(part, part.sim(theta)) for part in parts(boxed.problem)]
+                           + [boxed.of_prior(theta)])
 
 
 def _scores(theta: Array, boxed: _Boxed) -> tuple[Array, Array, Array]:
-    """The objective's sum of squares, the paper's cost and the PEM sum of squares, added over records."""
-    loss = cost = rss = jnp.zeros((), theta.dtype)
+    """The objective's sum of squares (the prior's included), the paper's cost and the PEM sum of squares (the
+    output errors' alone), added over records."""
+    loss = jnp.sum(boxed.of_prior(theta) ** 2)
+    cost = rss = jnp.zeros((), theta.dtype)
     for part in parts(boxed.problem):
         y = part.sim(theta)
         loss = loss + jnp.sum(boxed.of_outputs(part, y) ** 2)
@@ -227,6 +238,7 @@ def pem(
     free: Free = None,
     rtol: float = 1e-8,
     atol: float = 1e-8,
+    prior: Prior | None = None,
     **settings: Any,
 ) -> PEMResult:
     """Fit the hover model to a record by prediction-error minimisation (one jitted optimistix solve).
@@ -243,13 +255,15 @@ def pem(
         free: free parameters (mask or names; default every axis the bounds leave free); the rest stay at
             ``start``.
         rtol, atol: optimistix's Cauchy termination tolerances on the unit coordinates and the loss.
+        prior: a Gaussian prior whose residuals join the output errors' (:class:`~jaxheli.optim.prior.Prior`;
+            ``rss`` stays the output errors' sum of squares).
         settings: :class:`~jaxheli.problem.Settings` fields: ``outputs`` (default: the measured channels
             without a, b), ``segment`` (s; ``None``: one open-loop run, the paper's simulation), ``hold``,
             ``x0`` (``"measured"`` starts the predictor from the first measured states), ``g``, and the box
             ``lower``/``upper`` the answer stays in.
     """
     problem = fitted_problem(data, PEM_DEFAULTS, **settings)
-    return fit(problem, start, "pem", solver, max_steps, free, rtol, atol)
+    return fit(problem, start, "pem", solver, max_steps, free, rtol, atol, prior)
 
 
 def fit(
@@ -261,14 +275,17 @@ def fit(
     free: Free,
     rtol: float,
     atol: float,
+    prior: Prior | None = None,
 ) -> PEMResult:
     """Least squares on ``objective``'s residuals over the free parameters, in ``problem``'s box (shared by
     :func:`pem` and :func:`~jaxheli.optim.polish.polish`); over several records the residuals are concatenated,
-    so the sums of squares (and the paper's costs reported) add."""
+    so the sums of squares (and the paper's costs reported) add. A ``prior`` (:class:`~jaxheli.optim.prior.Prior`)
+    appends its residuals of the free parameters: the one place every local fit takes it; the start is kept unless
+    the answer lowers the objective with them."""
     base, mask = start_vector(start, problem.bounds), problem.bounds.free_mask(free)
-    boxed = _Boxed(problem, FreeAxes(problem.bounds, base, mask), objective)
+    boxed = _Boxed(problem, FreeAxes(problem.bounds, base, mask), objective, prior)
     raw = _solve(boxed, least_squares_solver(solver, rtol, atol, int(mask.sum())), int(max_steps))
     settings = {"objective": objective, "solver": solver, "max_steps": int(max_steps), "rtol": rtol, "atol": atol,
                 "simulator": [part.sim.describe() for part in parts(problem)] if isinstance(problem, Records)
-                else problem.sim.describe()}
+                else problem.sim.describe(), "prior": prior is not None}
     return _result(raw, base, mask, settings)

@@ -23,6 +23,7 @@ from ..data.flight import FlightData
 from ..problem import Problem
 from .output_error import output_error
 from .pem import PEMResult, Solver, fit, fitted_problem
+from .prior import Prior
 
 PolishObjective = Literal["output-error", "pearson", "pem"]
 POLISH_OBJECTIVES: tuple[str, ...] = ("output-error", "pearson", "pem")
@@ -39,6 +40,7 @@ def polish(
     free: Free = None,
     rtol: float = 1e-8,
     atol: float = 1e-8,
+    prior: Prior | None = None,
     **settings: Any,
 ) -> PEMResult:
     """Refine ``theta0[40]``, or the best of several starts ``theta0[S, 40]``, on a record (``"output-error"``
@@ -52,14 +54,15 @@ def polish(
     keeps the channels, hold, g and box and chooses restarts and initial state itself (``rounds`` rounds of
     ``max_steps`` steps). ``cost_start`` / ``cost`` of the result are the paper's cost of the simulation
     polished before and after; ``rss_start`` / ``rss`` the normalised output-error sum of squares. ``solver``,
-    ``max_steps``, ``free``, ``rtol``, ``atol`` as in :func:`jaxheli.optim.pem.pem`.
+    ``max_steps``, ``free``, ``rtol``, ``atol``, ``prior`` (a Gaussian prior's residuals appended,
+    :mod:`jaxheli.optim.prior`) as in :func:`jaxheli.optim.pem.pem`.
     """
     if objective not in POLISH_OBJECTIVES:
         raise ValueError(f"polish: objective must be one of {POLISH_OBJECTIVES}, got {objective!r}")
     problem = fitted_problem(data, **settings)
     if objective == "output-error":
         return output_error(problem, theta0, rounds=rounds, solver=solver, max_steps=max_steps, free=free,
-                            rtol=rtol, atol=atol)
+                            rtol=rtol, atol=atol, prior=prior)
     starts = np.asarray(theta0, dtype=np.float64).reshape(-1, np.shape(theta0)[-1])
-    fits = [fit(problem, start, objective, solver, max_steps, free, rtol, atol) for start in starts]
+    fits = [fit(problem, start, objective, solver, max_steps, free, rtol, atol, prior) for start in starts]
     return min(fits, key=lambda res: res.cost if objective == "pearson" else res.rss)

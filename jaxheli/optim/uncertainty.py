@@ -54,6 +54,8 @@ class Uncertainty:
         rank: singular values kept (above ``rcond`` times the largest).
         sigma2: ``s^2``, the residual variance estimate.
         dof: ``N_res - rank``.
+        null_space: ``[d, 40]`` the dropped directions of the column-normalised Jacobian (orthonormal rows; zero on
+            parameters not free), or ``None`` where the residuals were not finite.
     """
 
     theta: np.ndarray
@@ -66,6 +68,12 @@ class Uncertainty:
     rank: int
     sigma2: float
     dof: int
+    null_space: np.ndarray | None = None
+
+    @property
+    def rss(self) -> float:
+        """The residuals' sum of squares, ``s^2 (N_res - rank)``."""
+        return self.sigma2 * self.dof
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready values; per-parameter quantities as ``{name: value}`` (inf as ``"inf"``)."""
@@ -155,7 +163,10 @@ def from_residuals(
     magnitude = np.abs(theta)
     relative = np.where(stderr == 0, 0.0, stderr / np.where(magnitude > 0, magnitude, 1.0))
     relative = np.where((magnitude == 0) & (stderr > 0), np.inf, relative)
-    return Uncertainty(theta, stderr, relative, correlation, mask, resolved, s, int(keep.sum()), sigma2, dof)
+    null_space = np.zeros((int((~keep).sum()), N_PARAMS))
+    null_space[:, idx] = vt[~keep]
+    return Uncertainty(theta, stderr, relative, correlation, mask, resolved, s, int(keep.sum()), sigma2, dof,
+                       null_space)
 
 
 def standard_errors(

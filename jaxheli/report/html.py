@@ -29,6 +29,7 @@ tr:nth-child(even) td{background:#f8fafc}
 figure{margin:10px 0 18px}figure img{max-width:100%;border:1px solid #e1e6eb}
 figcaption{font-size:13px;color:#4a5866}
 .note{background:#fff7e0;border-left:4px solid #e0a800;padding:8px 12px;margin:8px 0}
+.side-by-side{display:flex;flex-wrap:wrap;gap:24px;align-items:flex-start}
 .good{color:#1b7a36;font-weight:600}.bad{color:#b3261e;font-weight:600}
 code{background:#eef2f6;padding:1px 4px;border-radius:3px}
 """

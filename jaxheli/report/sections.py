@@ -96,12 +96,14 @@ def parameters(results: Sequence[ResultSource]) -> Html:
     interval over trials, standard error."""
     head = ["parameter"] + [h for r in results for h in (f"{r.label}", "95% interval", "std. error")]
     bounded = [_at_bounds(r) for r in results]
+    held = [r.content.get("fixed") or {} for r in results]
     rows = []
     for i, name in enumerate(PARAM_NAMES):
         row: list[Any] = [name + (" (pinned)" if name in PINNED else "")]
-        for r, on in zip(results, bounded):
+        for r, on, fixed in zip(results, bounded, held):
             interval = (r.content.get("intervals95") or {}).get(name)
-            value = num(r.params[i]) + (f" (at {on[name]} bound)" if name in on else "")
+            value = num(r.params[i]) + (f" (at {on[name]} bound)" if name in on else "") + (
+                " (fixed)" if name in fixed else "")
             row += [value, "-" if interval is None else f"[{num(interval[0])}, {num(interval[1])}]",
                     num((r.content.get("stderr") or {}).get(name), ".3g")]
         rows.append(row)
@@ -109,8 +111,28 @@ def parameters(results: Sequence[ResultSource]) -> Html:
                    tag("p", "SI units (m, s, rad). 95% interval: t-interval of the trial mean (needs 2 or more "
                        "trials); std. error: Cramer-Rao bound at the optimum (inf: not identifiable from the flight). "
                        f"At a bound: within {100 * BOUND_TOLERANCE:g} % of the search box's width from it; the box, "
-                       "not the flight, set that value, and its interval and standard error say nothing of it."),
-                   table(head, rows))
+                       "not the flight, set that value, and its interval and standard error say nothing of it. "
+                       "Fixed: held by the model-structure determination (identify --structure), see below."),
+                   table(head, rows), *_bounds_and_fixed(results, bounded, held))
+
+
+def _bounds_and_fixed(
+    results: Sequence[ResultSource], bounded: list[dict[str, str]], held: list[dict[str, dict[str, Any]]]
+) -> list[Html]:
+    """Two tables side by side, per result: the parameters at a bound, and those the model-structure determination
+    fixed (value, where it comes from, round, reason); only where some result ran the determination."""
+    ran = [r for r in results if r.content.get("fixed") is not None]
+    if not ran:
+        return []
+    at = [[r.label, name, side] for r, on in zip(results, bounded) for name, side in on.items()]
+    fixed = [[r.label, name, f.get("source", "-"), f.get("reason", ""), num(f.get("value")), str(f.get("round", "-"))]
+             for r, named in zip(results, held) for name, f in named.items()]
+    return [tag("div",
+                table(["result", "parameter", "bound"], at or [["-", "none", "-"]], caption="parameters at bounds",
+                      text_columns=3),
+                table(["result", "parameter", "held at", "reason", "value", "round"],
+                      fixed or [["-", "none", "-", "-", "-", "-"]], caption="fixed parameters", text_columns=4),
+                class_="side-by-side")]
 
 
 def _at_bounds(result: ResultSource) -> dict[str, str]:
