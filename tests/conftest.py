@@ -1,6 +1,7 @@
 """Strict test settings: float64, no silent rank promotion; real data required when asked."""
 
 import os
+import tempfile
 
 # The suite's time goes mostly to compiling many small programs: a lower LLVM optimisation level compiles
 # them about 1.4x faster (tests/test_px4log_cli.py: 137 s -> 95 s) and leaves the arithmetic unchanged.
@@ -16,6 +17,13 @@ if os.environ.get("PYTEST_XDIST_WORKER") and int(os.environ["PYTEST_XDIST_WORKER
     # may use, jaxheli/_affinity.py): the two workers of `-n 2` sharing two cores ran the joint-diagnosis tests
     # 2-5x slower than one pytest on one core. The notebook's kernel and any subprocess inherit the core.
     os.sched_setaffinity(0, {_CORES[int(os.environ["PYTEST_XDIST_WORKER"].removeprefix("gw"))]})
+
+# One on-disk cache of compiled programs for the run's processes (both xdist workers, the notebook's kernel, the
+# command-line subprocesses): a program one of them compiled, the others read back instead of compiling it again.
+# A fresh folder per run (xdist's run id), so a rerun does the same work as CI's first.
+_RUN = os.environ.get("PYTEST_XDIST_TESTRUNUID") or f"pid{os.getpid()}"
+os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", os.path.join(tempfile.gettempdir(), f"jaxheli-tests-xla-{_RUN}"))
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.3")
 
 import gc  # noqa: E402
 

@@ -218,26 +218,26 @@ def test_all_zero_csv_channel_left_out_with_a_note(tmp_path, capsys, flight):
 
 def test_missing_inputs_flag(shared_data, tmp_path, capsys):
     path = shared_data / "px4logs" / "reference" / "log001.bin"
-    _cli_error(capsys, ["check", str(path), "--out", str(tmp_path)], "log001.bin", "--missing-inputs zero")
-    assert main(["check", str(path), "--missing-inputs", "zero", "--out", str(tmp_path)]) == 0
+    _cli_error(capsys, ["check", "--data", str(path), "--out", str(tmp_path)], "log001.bin", "--missing-inputs zero")
+    assert main(["check", "--data", str(path), "--missing-inputs", "zero", "--out", str(tmp_path)]) == 0
 
 
 def test_no_strict_flag_loads_a_truncated_log(shared_data, tmp_path, capsys):
     path = tmp_path / "cut.px4log"
     path.write_bytes((shared_data / "px4logs" / "2016-08-09" / "13_25_39.px4log").read_bytes()[:300_001])
-    _cli_error(capsys, ["check", str(path), "--out", str(tmp_path)], "truncated", "--no-strict")
-    assert main(["check", str(path), "--no-strict", "--out", str(tmp_path)]) == 0
+    _cli_error(capsys, ["check", "--data", str(path), "--out", str(tmp_path)], "truncated", "--no-strict")
+    assert main(["check", "--data", str(path), "--no-strict", "--out", str(tmp_path)]) == 0
 
 
 def test_channel_map_file(shared_data, tmp_path, capsys):
     path = shared_data / "px4logs" / "reference" / "log001.bin"
     mapping = tmp_path / "map.json"
     mapping.write_text(json.dumps({"p": ["ATT", "RollRate"], "q": ["ATT", "PitchRate", 1.0], "r": ["ATT", "YawRate"]}))
-    assert main(["check", str(path), "--channel-map", str(mapping), "--missing-inputs", "zero",
+    assert main(["check", "--data", str(path), "--channel-map", str(mapping), "--missing-inputs", "zero",
                  "--out", str(tmp_path)]) == 0
     assert (tmp_path / "consistency.json").is_file()
     mapping.write_text("{not json")
-    _cli_error(capsys, ["check", str(path), "--channel-map", str(mapping), "--out", str(tmp_path)],
+    _cli_error(capsys, ["check", "--data", str(path), "--channel-map", str(mapping), "--out", str(tmp_path)],
                "map.json: not a JSON channel map")
-    _cli_error(capsys, ["check", str(path), "--channel-map", str(tmp_path / "none.json"), "--out", str(tmp_path)],
+    _cli_error(capsys, ["check", "--data", str(path), "--channel-map", str(tmp_path / "none.json"), "--out", str(tmp_path)],
                "none.json: no such channel-map file")

@@ -189,7 +189,7 @@ def test_cli_handler_writes_json_and_plot(clean, tmp_path, capsys):
     save_npz(_lag(clean), path)
     parser = argparse.ArgumentParser()
     add_parser(parser.add_subparsers(dest="command"))
-    args = parser.parse_args(["check", str(path), "--out", str(tmp_path / "out")])
+    args = parser.parse_args(["check", "--data", str(path), "--out", str(tmp_path / "out")])
     assert args.func(args) == 0
     rows = json.loads((tmp_path / "out" / "consistency.json").read_text())
     assert all(set(r) == KEYS for r in rows)
