@@ -15,7 +15,7 @@ from jaxheli.cost import nmse
 from jaxheli.gap.predictor import TRACKS, make_predictor, noise_variance, tune_track
 from jaxheli.gap.fit_effect import EffectFit
 from jaxheli.gap.ranking import predictor_pair, rank_effects, verdict
-from jaxheli.gap.significance import SIG_SIGMA, TIE_SIGMA, HeldOut, lr_test, shrink_entries, yardstick
+from jaxheli.gap.significance import EFFECT_SIGMA, TIE_SIGMA, HeldOut, lr_test, shrink_entries, yardstick
 from jaxheli.model import TABLE2
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS, piloted_flight
 from filtered_restart import reference_prediction
@@ -314,7 +314,7 @@ def test_shrinks_within_their_paired_noise_are_a_tie_and_noise_alone_is_not_sign
     assert by["input_delay"].significant and by["actuator_lag"].significant
     assert by["input_delay"].tied_with == ("actuator_lag",) and by["actuator_lag"].tied_with == ("input_delay",)
     small = by["control_saturation"]
-    assert small.shrink_pct == pytest.approx(4.0) and small.shrink_pct < SIG_SIGMA * small.shrink_se_pct
+    assert small.shrink_pct == pytest.approx(4.0) and small.shrink_pct < EFFECT_SIGMA * small.shrink_se_pct
     assert not small.significant and small.tied_with == ()
     assert " tied with " in verdict(ranking)
     clean = _windows(np.random.default_rng(1), base, [0.30, 0.22], 0.01)

@@ -2,7 +2,7 @@
 standard errors, ties, and the likelihood-ratio test beside them.
 
 A candidate is significant when its held-out shrink over the reference is at least ``min_shrink`` % (the noise
-floor, :data:`MIN_SHRINK` by default) and at least :data:`SIG_SIGMA` of its own standard error (windows of the
+floor, :data:`MIN_SHRINK` by default) and at least :data:`EFFECT_SIGMA` of its own standard error (windows of the
 validation flight paired, :func:`paired_se`) unless it is :data:`LARGE_SHRINK` or more; when no fitted parameter
 sits on its physical bound (:func:`jaxheli.effects.registry.at_bound`: a 0.5 s "input delay" has absorbed something
 else); and when its fitted size lies :data:`MIN_Z` standard errors or more from no effect. Two significant
@@ -50,8 +50,14 @@ rotor coupling, a drag); between 1 and 2 stood six true effects (four biases, a 
 one spurious drag (1.86, behind its trial's true bias). A bound of 2 lost those six."""
 
 SIG_SIGMA = THRESHOLDS.sig_sigma
-"""Standard errors (paired over validation windows) a shrink below :data:`LARGE_SHRINK` must stand above zero
-to be significant: a one-sided 5 % test."""
+"""Standard errors (paired over validation windows) the base model's own re-fits must shrink the gap by (the
+reference: under-fitted; the structure hypothesis): a one-sided 5 % test."""
+
+EFFECT_SIGMA = THRESHOLDS.effect_sigma
+"""Standard errors (paired over validation windows) a candidate effect's shrink below :data:`LARGE_SHRINK` must
+stand above zero to be significant (one-sided 2.3 %). Set on calibration seeds 100-105 (independent simulator): with
+the re-check beyond the structure run only where the structure is significant
+(:func:`~jaxheli.gap.ranking.staged`), the 5 % test named a process noise on an effect-free flight (12.8 +- 7.7 %)."""
 
 LARGE_SHRINK = THRESHOLDS.large_shrink
 """Held-out shrink (%) that is significant without the window test: an effect that acts only in large
@@ -118,7 +124,7 @@ def shrink_entries(
             shrink_pct=shrink,
             shrink_se_pct=se,
             shrink_by_channel={ch: 100.0 * float((gb - g) / gb) for ch, gb, g in zip(outputs, gap_ref, held.gap[c])},
-            significant=bool(shrink >= min_shrink and (shrink >= SIG_SIGMA * se or shrink >= LARGE_SHRINK)
+            significant=bool(shrink >= min_shrink and (shrink >= EFFECT_SIGMA * se or shrink >= LARGE_SHRINK)
                              and not fitted.at_bound and fitted.evidence_z >= MIN_Z),
             lr=lr_test(float(fit.rss[0]), float(fit.rss[c]), float(fit.n_eff[c]),
                        int(fit.k_active[c] - fit.k_active[0])),

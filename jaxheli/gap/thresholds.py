@@ -46,6 +46,7 @@ class Thresholds:
     min_shrink: float
     min_z: float
     sig_sigma: float
+    effect_sigma: float
     large_shrink: float
     tie_sigma: float
     settled_pct: float
