@@ -1,6 +1,7 @@
 """Strict test settings: float64, no silent rank promotion; real data required when asked."""
 
 import os
+import shutil
 import tempfile
 
 # The suite's time goes mostly to compiling many small programs: a lower LLVM optimisation level compiles
@@ -20,9 +21,11 @@ if os.environ.get("PYTEST_XDIST_WORKER") and int(os.environ["PYTEST_XDIST_WORKER
 
 # One on-disk cache of compiled programs for the run's processes (both xdist workers, the notebook's kernel, the
 # command-line subprocesses): a program one of them compiled, the others read back instead of compiling it again.
-# A fresh folder per run (xdist's run id), so a rerun does the same work as CI's first.
-_RUN = os.environ.get("PYTEST_XDIST_TESTRUNUID") or f"pid{os.getpid()}"
-os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", os.path.join(tempfile.gettempdir(), f"jaxheli-tests-xla-{_RUN}"))
+# The run's first pytest process (xdist's controller) names a fresh folder, the processes it starts inherit it, and
+# it removes the folder at the end (pytest_unconfigure), so a rerun does the same work as CI's first.
+_OWN_CACHE = "JAX_COMPILATION_CACHE_DIR" not in os.environ
+if _OWN_CACHE:
+    os.environ["JAX_COMPILATION_CACHE_DIR"] = tempfile.mkdtemp(prefix="jaxheli-tests-xla-")
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.3")
 
 import gc  # noqa: E402
@@ -36,6 +39,12 @@ jax.config.update("jax_numpy_rank_promotion", "raise")
 from jaxheli.io.paths import data_dir  # noqa: E402
 
 REQUIRE_DATA = os.environ.get("JAXHELI_REQUIRE_DATA", "") not in ("", "0")
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    """The process that made the run's compilation cache folder removes it."""
+    if _OWN_CACHE:
+        shutil.rmtree(os.environ["JAX_COMPILATION_CACHE_DIR"], ignore_errors=True)
 
 
 @pytest.hookimpl(tryfirst=True)
