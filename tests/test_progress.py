@@ -54,6 +54,8 @@ def test_the_watchdog_names_a_long_stage_and_a_library_caller_sees_nothing(capsy
             note("muted")
     lines = capsys.readouterr().err.splitlines()
     bare = [STAMP.sub("", line) for line in lines]
-    assert bare[:2] == ["a long wait ...", f"  ... a long wait ({HEARTBEAT_S:.0f} s)"] and len(bare) == 3
-    assert re.fullmatch(r"a long wait: over \(4\.[5-9] s\)", bare[2]), bare
+    assert bare[0] == "a long wait ..." and bare[-1].startswith("a long wait: over (")
+    beats = bare[1:-1]  # at least one heartbeat naming the stage (a loaded machine may add a second)
+    assert beats and all(re.fullmatch(r"  \.\.\. a long wait \(\d+ s\)", b) for b in beats), bare
+    assert float(re.search(r"\(([\d.]+) s\)", bare[-1]).group(1)) >= HEARTBEAT_S  # the stage's own time, not a bound
     assert left(3, 10, 90.0) == "3 of 10 done in 90 s, about 210 s left" and left(10, 10, 5.0) == "10 of 10 done in 5 s"

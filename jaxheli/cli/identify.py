@@ -13,10 +13,9 @@ from ..flights import DEFAULT_DATA
 from ..bounds import BOXES, named_box
 from ..identify import METHODS, PRIOR_SD
 from ..optim.polish import POLISH_OBJECTIVES
-from ._options import (add_data_option, add_flight_option, add_load_options, add_sim_options, outputs, read_flight,
-                       sim_options)
+from ._options import (add_data_option, add_flight_option, add_load_options, add_quiet_option, add_sim_options,
+                       outputs, read_flight, sim_options)
 from .verify import print_modes, print_verification
-from ._options import add_quiet_option
 
 
 def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
