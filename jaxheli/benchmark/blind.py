@@ -47,7 +47,7 @@ from ..synth.excitation import Excitation
 from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
 from ..gap.final_fit import final_fit
 from ..gap.records import Entry, Final, Refit, Structure
-from ..gap.ranking import predictor_pair, staged
+from ..gap.ranking import predictor_pair, staged, structure_leads
 from ..gap.reference import theta_box
 from ..gap.significance import MIN_SHRINK, MIN_Z
 from ..gap.thresholds import THRESHOLDS
@@ -290,7 +290,7 @@ def run_trial(
                                     if inj.kind != "none" else None),
               "box": box, "base": ident, "base_refit": _untheta(refit),
               "structure": None if structure is None else _untheta(structure),
-              "structure_named": bool(structure is not None and structure.significant),
+              "structure_named": structure_leads(ranking, structure),
               "recheck": [_untheta(e) for e in stages.recheck],
               "track": float(train_pred.track),
               "ranking": [_untheta(e) for e in ranking], "final": None if final is None else _untheta(final)}
