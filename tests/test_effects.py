@@ -14,7 +14,8 @@ from jaxheli.gap.kalman import gust_filter, riccati
 from jaxheli.cost import nmse
 from jaxheli.gap.predictor import TRACKS, make_predictor, noise_variance, tune_track
 from jaxheli.gap.fit_effect import EffectFit
-from jaxheli.gap.ranking import predictor_pair, rank_effects, verdict
+from jaxheli.gap.ranking import explains_more, predictor_pair, rank_effects, structure_leads, verdict
+from jaxheli.gap.records import Structure
 from jaxheli.gap.significance import EFFECT_SIGMA, TIE_SIGMA, HeldOut, lr_test, shrink_entries, yardstick
 from jaxheli.model import TABLE2
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS, piloted_flight
@@ -256,6 +257,31 @@ def test_a_shrink_from_parameters_within_noise_of_no_effect_is_not_significant()
     assert weak.shrink_pct > strong.shrink_pct > 3.0
     assert strong.significant and not weak.significant and strong.fitted.evidence_z == pytest.approx(16.0)
     assert verdict([weak, strong]).startswith("input_delay (lat input delay delay 80 +- 5 ms)")
+
+
+def _structure(shrink: float, significant: bool = True) -> Structure:
+    return Structure(shrink, 5.0, significant, 0.2, 0.2 * (1 - shrink / 100), {}, {}, {"Xu": -3.0}, {"Xu": -1.0},
+                     np.zeros(40), {})
+
+
+def test_an_effect_that_shrinks_the_gap_further_than_the_structure_leads_the_verdict():
+    """The structure re-fit (every pinned parameter freed, the box widened) leads only when no significant effect
+    predicts the validation flight as well; an effect that does is not its stand-in."""
+    k = 2 * len(OUT)
+    z = np.zeros((1, k))
+    z[0, :4] = [0.08, 0.0, 0.0, 0.0]
+    gap_base = np.full(len(OUT), 0.2)
+    (delay,) = shrink_entries(["input_delay"], OUT, _fit(z, np.full((1, k), 0.005)),
+                              HeldOut(np.stack([gap_base, 0.6 * gap_base]), np.ones((2, 4))), 3.0)
+    assert delay.significant and delay.shrink_pct == pytest.approx(40.0)
+    weaker, stronger, idle = _structure(30.0), _structure(45.0), _structure(60.0, significant=False)
+    assert explains_more(delay, weaker) and not explains_more(delay, stronger) and not explains_more(delay, idle)
+    assert not structure_leads([delay], weaker) and structure_leads([delay], stronger)
+    assert not structure_leads([delay], idle) and not structure_leads([delay], None)
+    text = verdict([delay], structure=weaker)
+    assert text.startswith("input_delay (lat input delay delay 80 +- 5 ms): gap shrinks 40.0 %")
+    assert text.endswith("more than the base model's structure (Xu beyond its bound (-3 past -1): 30.0 +- 5.0 %)")
+    assert verdict([delay], structure=stronger).startswith("base model structure: Xu beyond its bound")
 
 
 def test_candidates_are_credited_beyond_the_better_model_without_an_effect():
