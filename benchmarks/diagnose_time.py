@@ -1,7 +1,7 @@
 """Wall time of ``jaxheli.gap.diagnose`` on one flight pair of the independent truth simulator (issue 34's
 diagnosis timings)::
 
-    python benchmarks/diagnose_time.py [--kind logger_delay] [--seed 3] [--duration 60] [--dt 0.02]
+    python benchmarks/diagnose_time.py [--kind logger_delay] [--seed 3] [--duration 60] [--dt 0.02] [--max-steps 15]
 
 The pair is the blind check's (:func:`jaxheli.benchmark.independent.independent_trial`, scenario of ``--seed``),
 the base model a 100-step PEM fit in the authors' box, as a user would identify it; the time printed is the
@@ -18,6 +18,7 @@ jax.config.update("jax_enable_x64", True)
 from jaxheli.benchmark.blind import DEFAULT_OUTPUTS, base_model, scenario  # noqa: E402
 from jaxheli.benchmark.independent import independent_trial  # noqa: E402
 from jaxheli.gap.diagnose import diagnose  # noqa: E402
+from jaxheli.gap.fit_effect import MAX_STEPS  # noqa: E402
 
 
 def main() -> None:
@@ -26,15 +27,17 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=3, help="design seed of the scenario (default 3)")
     p.add_argument("--duration", type=float, default=60.0, help="flight length, s (default 60)")
     p.add_argument("--dt", type=float, default=0.02, help="sample time, s (default 0.02: 50 Hz)")
+    p.add_argument("--max-steps", type=int, default=MAX_STEPS,
+                   help=f"LM steps per candidate fit (default {MAX_STEPS}, the diagnosis's)")
     args = p.parse_args()
     where = scenario(args.seed)
     trial = independent_trial(args.kind, args.seed, where.theta, style=where.style, noise=where.noise,
                               strength=where.strength, duration=args.duration, dt=args.dt, outputs=DEFAULT_OUTPUTS)
     theta, _ = base_model(trial.train, "pem", args.seed, box="authors")
     t0 = time.perf_counter()
-    found = diagnose(theta, trial.train, trial.validate)
+    found = diagnose(theta, trial.train, trial.validate, max_steps=args.max_steps)
     print(f"diagnose: {time.perf_counter() - t0:.1f} s ({args.duration:g} s at {1 / args.dt:g} Hz, truth {where.truth}, "
-          f"{args.kind} withheld)")
+          f"{args.kind} withheld, {args.max_steps} LM steps per fit)")
     print(f"verdict: {found.attribution.verdict}")
 
 

@@ -1,5 +1,6 @@
 """Blind check: injections drawn as documented, scoring arithmetic, and a small blind run end to end."""
 
+import json
 import os
 import subprocess
 import sys
@@ -12,9 +13,11 @@ from jaxheli._affinity import cores
 from jaxheli.effects import plant as augmented
 from jaxheli.effects import registry as fx
 from jaxheli.benchmark.blind import (
-    BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, _process_on, _worker_cores, base_model, blind_flights, markdown,
-    run_blind, sample_injection, scenario, summarise, summarise_bases,
+    BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, _process_on, _worker_cores, base_model, blind_flights, explainable,
+    markdown, run_blind, sample_injection, scenario, summarise, summarise_bases, summarise_records,
 )
+from jaxheli.cli import main
+from jaxheli.gap.significance import MIN_SHRINK
 from jaxheli.model import R50_SI, TABLE2
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS
 
@@ -66,21 +69,25 @@ def test_scenarios_cover_every_combination_and_the_box_holds_every_truth():
     np.testing.assert_array_equal(scenario(5).theta, scenario(5).theta)
 
 
+RECORDS = [
+    {"kind": "input_delay", "top": "input_delay", "correct": True, "in_tie": True, "magnitude_error": 0.1,
+     "shrink_pct": 40.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 3.0, "oracle_magnitude_error": 0.05,
+     "magnitude_error_train": 0.2, "detectable": True},
+    {"kind": "input_delay", "top": "actuator_lag", "correct": False, "in_tie": True, "magnitude_error": 0.3,
+     "shrink_pct": 45.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 0.4, "oracle_magnitude_error": 0.25,
+     "magnitude_error_train": 0.4, "detectable": True},
+    {"kind": "input_delay", "top": "none", "correct": False, "in_tie": False, "magnitude_error": 0.5,
+     "shrink_pct": 1.0, "oracle_shrink_pct": 4.0, "oracle_evidence_z": 9.0, "oracle_magnitude_error": 0.6,
+     "magnitude_error_train": 0.7, "detectable": False},
+    {"kind": "none", "top": "none", "correct": True},
+    {"kind": "none", "top": "none", "correct": True, "structure_named": True},
+    {"kind": "none", "top": "process_noise", "correct": False},
+]
+"""Three delay trials (two detectable) and three controls, as a blind run records them."""
+
+
 def test_summary_arithmetic_and_table():
-    records = [
-        {"kind": "input_delay", "top": "input_delay", "correct": True, "in_tie": True, "magnitude_error": 0.1,
-         "shrink_pct": 40.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 3.0, "oracle_magnitude_error": 0.05,
-         "magnitude_error_train": 0.2, "detectable": True},
-        {"kind": "input_delay", "top": "actuator_lag", "correct": False, "in_tie": True, "magnitude_error": 0.3,
-         "shrink_pct": 45.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 0.4, "oracle_magnitude_error": 0.25,
-         "magnitude_error_train": 0.4, "detectable": True},
-        {"kind": "input_delay", "top": "none", "correct": False, "in_tie": False, "magnitude_error": 0.5,
-         "shrink_pct": 1.0, "oracle_shrink_pct": 4.0, "oracle_evidence_z": 9.0, "oracle_magnitude_error": 0.6,
-         "magnitude_error_train": 0.7, "detectable": False},
-        {"kind": "none", "top": "none", "correct": True},
-        {"kind": "none", "top": "none", "correct": True, "structure_named": True},
-        {"kind": "none", "top": "process_noise", "correct": False},
-    ]
+    records = RECORDS
     s = summarise(records)
     row = s["kinds"]["input_delay"]
     assert row["top1_pct"] == pytest.approx(100 / 3) and row["in_tie_pct"] == pytest.approx(200 / 3)
@@ -96,7 +103,24 @@ def test_summary_arithmetic_and_table():
     assert row["train_magnitude_error_median_detectable"] == pytest.approx(0.3)
     assert s["false_positive_pct"] == pytest.approx(100 / 3)
     assert s["kinds"]["none"]["structure_pct"] == pytest.approx(100 / 3) and row["structure_pct"] == 0.0
-    assert "| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 1 | 100 | 100 | 10.0 % | 20.0 % | 5.0 % | 85.0 | 0 |" in markdown(s)
+    # both detectable trials' oracles shrink the gap 50 % (>= MIN_SHRINK): the form could be credited in each
+    assert row["explainable_trials"] == 2 and row["top1_explainable_pct"] == 50.0
+    assert not explainable({**records[0], "oracle_shrink_pct": MIN_SHRINK - 0.1}) and not explainable(records[2])
+    assert ("| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 1 | 100 | 100 | 10.0 % | 20.0 % | 5.0 % | 85.0 | 0 "
+            "| 2 | 50 |") in markdown(s)
+
+
+def test_an_earlier_runs_records_are_summarised_again_without_running(tmp_path, capsys):
+    path = tmp_path / "blind.json"
+    path.write_text(json.dumps({"summary": {"settings": {"split": "test"}},
+                                "records": [{**r, "base": {"method": "pem"}} for r in RECORDS]}))
+    assert main(["blind", "--summarise", str(path), "--out", str(tmp_path / "again")]) == 0
+    table = (tmp_path / "again" / "blind.md").read_text()
+    assert "| 2 | 50 |" in table and "False positives on effect-free flights: 33 %" in table
+    assert table.strip() in capsys.readouterr().out
+    path.write_text("{}")
+    with pytest.raises(ValueError, match="blind.json: not a blind run's records"):
+        summarise_records(path)
 
 
 def test_other_base_methods_are_summarised_beside_pem_on_the_same_trials():

@@ -9,10 +9,11 @@ from pathlib import Path
 from ..effects import registry as fx
 from ..evaluate import resolve_params
 from ..flights import DEFAULT_DATA
-from ..benchmark.blind import BOXES, TRUTHS_SIM, markdown, run_benchmark
+from ..benchmark.blind import BOXES, TRUTHS_SIM, markdown, run_benchmark, summarise_records
 from ..gap.compare import localise_model, write_localisation
 from ..gap.consistency import MAX_TRAVEL_M, check, write_check
 from ..gap.diagnose import diagnose, ranking_table, write_diagnosis
+from ..gap.fit_effect import MAX_STEPS
 from ..gap.significance import MIN_SHRINK
 from ..gap.prepare import prepare
 from ..model import G_SI
@@ -65,7 +66,9 @@ def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                         "of 0.1-10 that suits the model best on the training flight)")
     p.add_argument("--top", type=int, default=3, help="significant effects fitted jointly (default 3)")
     p.add_argument("--g", type=float, default=G_SI, help="gravity, m/s^2 (default 9.81)")
-    p.add_argument("--max-steps", type=int, default=40, help="Levenberg-Marquardt steps per candidate (default 40)")
+    p.add_argument("--max-steps", type=int, default=MAX_STEPS,
+                   help="Levenberg-Marquardt steps per candidate fit (default %(default)s: the blind check's, on which "
+                        "the thresholds were set)")
     p.add_argument("--min-shrink", type=float, default=MIN_SHRINK,
                    help="smallest significant held-out shrink, %% (default %(default)g: calibrated on effect-free flights with identified base models)")
     p.add_argument("--frozen-base", action="store_true",
@@ -91,6 +94,9 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                         "jaxheli.benchmark.truth (default library)")
     p.add_argument("--kinds", nargs="+", choices=tuple(dict.fromkeys(k for ks in TRUTHS_SIM.values() for k in ks)),
                    help="effect kinds of that truth (default all + none)")
+    p.add_argument("--summarise", metavar="BLIND_JSON", type=Path,
+                   help="run nothing: summarise the records of an earlier run's blind.json again (today's table, "
+                        "e.g. after a column was added) and write --out/blind.md")
     p.add_argument("--split", choices=("design", "calibration", "test"), default="design",
                    help="seed range of the protocol in jaxheli/gap/thresholds.json: design (anything goes), "
                         "calibration (sets the thresholds), test (run once per release, never changes a rule; "
@@ -104,7 +110,7 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                         "hull)")
     p.add_argument("--duration", type=float, default=30.0, help="flight length, s (default 30)")
     p.add_argument("--dt", type=float, default=0.05, help="sample time, s (default 0.05)")
-    p.add_argument("--max-steps", type=int, default=15, help="LM steps per candidate fit (default 15)")
+    p.add_argument("--max-steps", type=int, default=MAX_STEPS, help="LM steps per candidate fit (default %(default)s)")
     p.add_argument("--pem-steps", type=int, default=100,
                    help="PEM steps identifying each trial's base model on its training flight (default 100)")
     p.add_argument("--iwo-seeds", type=int, default=3,
@@ -182,6 +188,13 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
 
 def _cmd_blind(args: argparse.Namespace) -> int:
+    if args.summarise is not None:
+        table = markdown(summarise_records(args.summarise))
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        (Path(args.out) / "blind.md").write_text(table + "\n")
+        print(table)
+        print(f"wrote {Path(args.out) / 'blind.md'} (records of {args.summarise})")
+        return 0
     kinds = args.kinds or list(TRUTHS_SIM[args.truth])
     summary = run_benchmark(kinds, args.seeds, args.out, workers=args.workers, iwo_seeds=args.iwo_seeds,
                             truth=args.truth, split=args.split, control_seeds=args.control_seeds,

@@ -35,7 +35,7 @@ from ..effects.plant import no_effect
 from .consistency import check
 from .compare import frequency_comparison, localise_prediction
 from .localisation_record import Localisation
-from .fit_effect import effect_eta as effect_eta
+from .fit_effect import MAX_STEPS, effect_eta as effect_eta
 from .predictor import Predictor, make_predictor
 from .ranking import diagnose_effects, predictor_pair
 from .records import Diagnosis, Entry, FlightSummary, Gap
@@ -89,7 +89,7 @@ def diagnose(
     track: float | None = None,
     joint: bool = True,
     bounds: Bounds | None = None,
-    max_steps: int = 40,
+    max_steps: int = MAX_STEPS,
     min_shrink: float = MIN_SHRINK,
 ) -> Diagnosis:
     """The diagnosis of ``model`` (anything :func:`jaxheli.resolve_params` takes).

@@ -117,13 +117,18 @@ class EffectFit(eqx.Module):
     converged: Array
 
 
+MAX_STEPS = 15
+"""Levenberg-Marquardt steps per candidate fit by default: the blind check's, on whose calibration seeds the
+diagnosis's thresholds were set (``jaxheli/gap/thresholds.json``)."""
+
+
 @eqx.filter_jit(compiler_options=QUICK_COMPILE)
 def fit_candidates(
     pred: Predictor,
     theta: Float[Array, "40"],
     base: Float[Array, "E"],
     cand: EffectRows,
-    max_steps: int = 40,
+    max_steps: int = MAX_STEPS,
     theta_box: Bounds | None = None,
 ) -> EffectFit:
     """Fit every candidate on ``pred``'s flight (LM mapped over the candidates; ``max_steps`` is static); with

@@ -34,7 +34,7 @@ from ..model import G_SI
 from ..effects import registry as fx
 from ..effects.plant import no_effect
 from .final_fit import final_fit
-from .fit_effect import EffectRows, embed, fit_candidates, score, with_reference
+from .fit_effect import MAX_STEPS, EffectRows, embed, fit_candidates, score, with_reference
 from .predictor import Predictor, make_predictor, tune_track
 from .records import Attribution, Entry, Refit, Structure
 from .reference import (
@@ -237,7 +237,7 @@ def rank_effects(
     validate: Predictor,
     effects: Sequence[str] = fx.ALL,
     *,
-    max_steps: int = 40,
+    max_steps: int = MAX_STEPS,
     min_shrink: float = MIN_SHRINK,
     shape: tuple[int, int] | None = None,
     joint: bool = True,
@@ -261,7 +261,7 @@ def combine_effects(
     validate: Predictor,
     effects: Sequence[str],
     *,
-    max_steps: int = 40,
+    max_steps: int = MAX_STEPS,
     min_shrink: float = MIN_SHRINK,
     ranking: Sequence[Entry] | None = None,
     shape: tuple[int, int] | None = None,
@@ -280,7 +280,7 @@ def combine_effects(
 
 def diagnose_effects(
     base_theta: Float[ArrayLike, "40"], train: Predictor, validate: Predictor, effects: Sequence[str] = fx.ALL, *,
-    top: int = 3, joint: bool = True, bounds: Bounds | None = None, max_steps: int = 40,
+    top: int = 3, joint: bool = True, bounds: Bounds | None = None, max_steps: int = MAX_STEPS,
     min_shrink: float = MIN_SHRINK,
 ) -> Attribution:
     """The ranking, the joint fit of the (up to ``top``) significant effects (``None`` unless two or more), the
