@@ -561,14 +561,13 @@ def summarise_bases(records: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def summarise_records(path: str | Path) -> dict[str, Any]:
-    """:func:`summarise_bases` of the records in an earlier run's ``blind.json`` (``path``), with its settings;
-    a file without records is an error naming it."""
+    """:func:`summarise_bases` of the records in an earlier run's ``blind.json`` (``path``); a file without records
+    is an error naming it."""
     try:
-        data = json.loads(Path(path).read_text())
-        records = data["records"]
+        records = json.loads(Path(path).read_text())["records"]
     except (OSError, ValueError, KeyError, TypeError) as err:
         raise ValueError(f"{path}: not a blind run's records ({err!r})") from err
-    return {**summarise_bases(records), "settings": data.get("summary", {}).get("settings", {})}
+    return summarise_bases(records)
 
 
 def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: int = 1, iwo_seeds: int = 0,
