@@ -17,6 +17,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import NoReturn, TextIO
 
+from .._compile_cache import use_compile_cache
 from .._progress import reporting
 from ._options import adopt_old_forms
 from .bench import add_bench_parser, add_trials_scaling_parser
@@ -57,12 +58,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_TIMES_COMPILATION = frozenset({"bench", "trials-scaling"})
+"""Commands whose timings include compilation: they compile afresh (:mod:`jaxheli._compile_cache`)."""
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``jaxheli`` command."""
     args = build_parser().parse_args(argv)
     import jax
 
     jax.config.update("jax_enable_x64", not args.float32)
+    if args.command not in _TIMES_COMPILATION:
+        use_compile_cache()
     with _console_warnings(f"jaxheli {args.command}"), reporting(getattr(args, "quiet", True) is False):
         try:
             return args.func(args)
