@@ -1,11 +1,12 @@
 """Wall time of ``jaxheli.gap.diagnose`` on one flight pair of the independent truth simulator (issue 34's
 diagnosis timings)::
 
-    python benchmarks/diagnose_time.py [--kind logger_delay] [--seed 3] [--duration 60] [--dt 0.02] [--max-steps 15]
+    python benchmarks/diagnose_time.py [--kind logger_delay] [--seed 3] [--duration 60] [--dt 0.02] [--max-steps 15] [--cache]
 
 The pair is the blind check's (:func:`jaxheli.benchmark.independent.independent_trial`, scenario of ``--seed``),
 the base model a 100-step PEM fit in the authors' box, as a user would identify it; the time printed is the
-diagnosis's alone (float64, compile included), then its verdict.
+diagnosis's alone (float64, compile included), then its verdict. ``--cache`` reads and writes compiled programs in the
+command line's cache (:func:`jaxheli.use_compile_cache`): run it twice for the time of a user's second diagnosis.
 """
 
 import argparse
@@ -15,6 +16,7 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+from jaxheli import use_compile_cache  # noqa: E402
 from jaxheli.benchmark.blind import DEFAULT_OUTPUTS, base_model, scenario  # noqa: E402
 from jaxheli.benchmark.independent import independent_trial  # noqa: E402
 from jaxheli.gap.diagnose import diagnose  # noqa: E402
@@ -29,7 +31,11 @@ def main() -> None:
     p.add_argument("--dt", type=float, default=0.02, help="sample time, s (default 0.02: 50 Hz)")
     p.add_argument("--max-steps", type=int, default=MAX_STEPS,
                    help=f"LM steps per candidate fit (default {MAX_STEPS}, the diagnosis's)")
+    p.add_argument("--cache", action="store_true",
+                   help="read and write compiled programs in $JAXHELI_CACHE (default: compile afresh)")
     args = p.parse_args()
+    if args.cache:
+        print(f"compilation cache: {use_compile_cache()}")
     where = scenario(args.seed)
     trial = independent_trial(args.kind, args.seed, where.theta, style=where.style, noise=where.noise,
                               strength=where.strength, duration=args.duration, dt=args.dt, outputs=DEFAULT_OUTPUTS)

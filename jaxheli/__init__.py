@@ -60,6 +60,7 @@ from .data.preprocess import detrend as detrend, from_samples as from_samples, l
 from .data.preprocess import resample as resample, split as split, trim as trim
 from .report import build_report as build_report, write_report as write_report
 from ._progress import reporting as reporting
+from ._compile_cache import use_compile_cache as use_compile_cache
 from .results import save_result as save_result
 from .verify import Verification as Verification, save_verification as save_verification, verify as verify
 from .sim.simulate import Simulator as Simulator, make_simulator as make_simulator, simulate as simulate
