@@ -15,6 +15,7 @@ from jaxheli.effects import registry as fx
 from jaxheli.benchmark.blind import (
     BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, _process_on, _worker_cores, base_model, blind_flights, explainable,
     markdown, run_blind, sample_injection, scenario, summarise, summarise_bases, summarise_records,
+    wilson_interval,
 )
 from jaxheli.cli import main
 from jaxheli.gap.significance import MIN_SHRINK
@@ -102,6 +103,8 @@ def test_summary_arithmetic_and_table():
     assert row["oracle_magnitude_error_median_identifiable"] == pytest.approx(0.05)
     assert row["train_magnitude_error_median_detectable"] == pytest.approx(0.3)
     assert s["false_positive_pct"] == pytest.approx(100 / 3)
+    assert (s["false_positives"], s["controls"]) == (1, 3)
+    assert "(1 of 3; 95 % Wilson interval 6-79 %)" in markdown(s)
     assert s["kinds"]["none"]["structure_pct"] == pytest.approx(100 / 3) and row["structure_pct"] == 0.0
     # both detectable trials' oracles shrink the gap 50 % (>= MIN_SHRINK): the form could be credited in each
     assert row["explainable_trials"] == 2 and row["top1_explainable_pct"] == 50.0
@@ -270,3 +273,11 @@ def test_each_trial_process_starts_on_a_core_of_its_own():
             assert os.sched_getaffinity(0) == set(usable)
     finally:
         os.sched_setaffinity(0, before)
+
+
+@pytest.mark.parametrize("k, n", [(0, 40), (1, 40), (6, 40), (20, 20), (3, 7)])
+def test_false_positive_interval_is_scipys_wilson_interval(k, n):
+    from scipy.stats import binomtest
+
+    ref = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+    assert wilson_interval(k, n) == pytest.approx((100 * ref.low, 100 * ref.high), abs=1e-9)

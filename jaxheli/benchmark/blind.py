@@ -507,8 +507,18 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
             row["shrink_vs_oracle_pct"] = float(np.median(shrunk)) if shrunk else None
         table[kind] = row
     controls = [r for r in records if r["kind"] == "none"]
+    named = sum(r["top"] != "none" for r in controls)
     fp = _pct([r["top"] != "none" for r in controls])
-    return {"kinds": table, "false_positive_pct": fp}
+    return {"kinds": table, "false_positive_pct": fp, "false_positives": named, "controls": len(controls),
+            "false_positive_ci95_pct": wilson_interval(named, len(controls)) if controls else None}
+
+
+def wilson_interval(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """Wilson score interval (%, 95 % by default) of a rate seen ``k`` times in ``n`` trials: what ``n`` controls
+    can say about a false-positive rate (6 of 40: 7-29 %; 0 of 40: 0-9 %)."""
+    p, z2 = k / n, z * z
+    centre, half = (p + z2 / (2 * n)) / (1 + z2 / n), z * np.sqrt(p * (1 - p) / n + z2 / (4 * n * n)) / (1 + z2 / n)
+    return 100.0 * max(0.0, centre - half), 100.0 * min(1.0, centre + half)
 
 
 def markdown(summary: dict[str, Any]) -> str:
@@ -537,7 +547,10 @@ def markdown(summary: dict[str, Any]) -> str:
                      f" | {error(row.get('oracle_magnitude_error_median_identifiable'))}"
                      f" | {cell(row.get('shrink_vs_oracle_pct'), '.1f')} | {cell(row.get('structure_pct'), '.0f')}"
                      f" | {row.get('explainable_trials', '-')} | {cell(row.get('top1_explainable_pct'), '.0f')} |")
-    lines.append(f"\nFalse positives on effect-free flights: {cell(summary['false_positive_pct'], '.0f')} %")
+    ci = summary.get("false_positive_ci95_pct")
+    lines.append(f"\nFalse positives on effect-free flights: {cell(summary['false_positive_pct'], '.0f')} %"
+                 + (f" ({summary['false_positives']} of {summary['controls']}; 95 % Wilson interval "
+                    f"{ci[0]:.0f}-{ci[1]:.0f} %)" if ci else ""))
     for method, both in summary.get("bases", {}).items():
         lines.append(f"\n### Base model by {method} against PEM, on the same trials (seeds {both['seeds']})\n")
         lines += [f"{m}:\n\n{markdown(both[m])}\n" for m in (method, "pem")]
