@@ -518,7 +518,7 @@ def wilson_interval(k: int, n: int, z: float = 1.959963984540054) -> tuple[float
     can say about a false-positive rate (6 of 40: 7-29 %; 0 of 40: 0-9 %)."""
     p, z2 = k / n, z * z
     centre, half = (p + z2 / (2 * n)) / (1 + z2 / n), z * np.sqrt(p * (1 - p) / n + z2 / (4 * n * n)) / (1 + z2 / n)
-    return 100.0 * max(0.0, centre - half), 100.0 * min(1.0, centre + half)
+    return 100.0 * max(0.0, float(centre - half)), 100.0 * min(1.0, float(centre + half))
 
 
 def markdown(summary: dict[str, Any]) -> str:
