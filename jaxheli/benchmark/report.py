@@ -42,12 +42,16 @@ def markdown(result: dict) -> str:
         lines += [f"| {r['cost']} | {r['rate']:.0f} | {r['ratio']:.2f} |" for r in c["rows"]]
     if result.get("time_to_model"):
         lines += ["", "## Time to a model (compilation included)", "",
-                  "| method | samples | s | NumPy loop s | ratio | fit % p / q / phi / theta |", "|---|---|---|---|---|---|"]
+                  "| method | samples | s (measured) | NumPy loop s (estimated) | ratio | fit % p / q / phi / theta |",
+                  "|---|---|---|---|---|---|"]
         for r in result["time_to_model"]:
             fit = " / ".join(f"{r['fit_percent'][c]:.1f}" for c in ("p", "q", "phi", "theta")
                              if c in r.get("fit_percent", {})) or f"RSS {r['rss']:.4g} ({r['steps']} steps)"
             numpy = f"{r['numpy_seconds']:.0f} | {r['numpy_ratio']:.0f}x" if "numpy_seconds" in r else "- | -"
             lines.append(f"| {r['method']} | {r['samples']} | {r['seconds']:.1f} | {numpy} | {fit} |")
+        if any("numpy_seconds" in r and r["method"].startswith("iwo") for r in result["time_to_model"]):
+            lines += ["", "IWO's NumPy loop: the candidates IWO scored, at the loop's rate measured in this run (an "
+                          "estimate, not a run; the frequency fit and the polish are not counted in it)."]
         if any("numpy_simulations" in r for r in result["time_to_model"]):
             lines += ["", "PEM's NumPy loop: a forward-difference Jacobian per step, steps x (free parameters + 1) "
                           "simulations at the loop's measured rate (an estimate, not a run)."]
