@@ -25,8 +25,12 @@ def test_protocol_seeds_and_their_ranges():
     p = th.THRESHOLDS.protocol
     assert p.seeds("test", 3) == [p.test_from, p.test_from + 1, p.test_from + 2]
     assert p.seeds("calibration", 2) == [p.calibration[0], p.calibration[0] + 1]
-    with pytest.raises(ValueError, match="design seeds are 0-99"):
+    with pytest.raises(ValueError, match="design seeds end at 99: 101 from 0 do not fit"):
         p.seeds("design", 101)
+    assert p.seeds("calibration", 2, skip=40) == [p.calibration[0] + 40, p.calibration[0] + 41]
+    assert p.seeds("test", 1, skip=1000) == [p.test_from + 1000]
+    with pytest.raises(ValueError, match="calibration seeds end at"):
+        p.seeds("calibration", 61, skip=40)
 
 
 def test_another_file_is_read_and_a_missing_field_is_named(tmp_path, monkeypatch):

@@ -585,10 +585,10 @@ def summarise_records(path: str | Path) -> dict[str, Any]:
 
 def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: int = 1, iwo_seeds: int = 0,
                   truth: str = "library", split: str = "design", control_seeds: int | None = None,
-                  **options: Any) -> dict[str, Any]:
+                  skip_seeds: int = 0, **options: Any) -> dict[str, Any]:
     """Run ``seeds`` blind trials per effect kind and ``control_seeds`` (default ``2 seeds``) of the control
-    ``none``, on the first seeds of ``split`` (the protocol of :mod:`jaxheli.gap.thresholds`: every kind meets the
-    same scenarios), with a PEM base model, and the first ``iwo_seeds`` of them again with an IWO + polish base
+    ``none``, on the first seeds of ``split`` after ``skip_seeds`` (the protocol of :mod:`jaxheli.gap.thresholds`:
+    every kind meets the same scenarios), with a PEM base model, and the first ``iwo_seeds`` of them again with an IWO + polish base
     (:func:`base_model`), in ``workers`` processes; write ``OUT/blind.json`` (records, :func:`summarise_bases`, the
     settings with the thresholds in force) and ``OUT/blind.md`` after every trial. ``truth`` picks the truth
     simulator (:data:`TRUTHS_SIM`), whose kinds ``kinds`` are."""
@@ -599,8 +599,9 @@ def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: in
         raise ValueError(f"blind benchmark: unknown kinds {bad} for the {truth} truth; kinds are {TRUTHS_SIM[truth]}")
     t0 = time.perf_counter()
     control_seeds = 2 * seeds if control_seeds is None else control_seeds
-    drawn = {k: THRESHOLDS.protocol.seeds(split, control_seeds if k == "none" else seeds) for k in kinds}
+    drawn = {k: THRESHOLDS.protocol.seeds(split, control_seeds if k == "none" else seeds, skip_seeds) for k in kinds}
     settings = {"kinds": list(kinds), "split": split, "seeds": seeds, "control_seeds": control_seeds,
+                "skip_seeds": skip_seeds,
                 "seed_range": [min(min(s) for s in drawn.values() if s), max(max(s) for s in drawn.values() if s)],
                 "iwo_seeds": iwo_seeds, "workers": workers, "truth": truth, **options,
                 "thresholds": {**{f.name: getattr(THRESHOLDS, f.name) for f in dataclasses.fields(THRESHOLDS)

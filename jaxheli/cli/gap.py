@@ -104,6 +104,9 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     p.add_argument("--seeds", type=int, default=2, help="trials per effect kind, the split's first seeds (default 2)")
     p.add_argument("--control-seeds", type=int, default=None,
                    help="trials of the effect-free control (kind none; default twice --seeds)")
+    p.add_argument("--skip-seeds", type=int, default=0,
+                   help="start this many seeds into the split, past those an earlier run spent (e.g. --split test "
+                        "--skip-seeds 1000: test seeds from 2000; default 0)")
     p.add_argument("--box", choices=tuple(BOXES), default="hull",
                    help="box the base model is identified and diagnosed in: the hull of both truth classes, or "
                         "the command line's default (the authors' TREX box, which the R-50 truths leave; default "
@@ -198,7 +201,7 @@ def _cmd_blind(args: argparse.Namespace) -> int:
     kinds = args.kinds or list(TRUTHS_SIM[args.truth])
     summary = run_benchmark(kinds, args.seeds, args.out, workers=args.workers, iwo_seeds=args.iwo_seeds,
                             truth=args.truth, split=args.split, control_seeds=args.control_seeds,
-                            duration=args.duration, dt=args.dt, max_steps=args.max_steps,
+                            skip_seeds=args.skip_seeds, duration=args.duration, dt=args.dt, max_steps=args.max_steps,
                             pem_steps=args.pem_steps, iterations=args.iterations, box=args.box)
     print(markdown(summary))
     print(f"runtime {summary['runtime_s']:.0f} s; wrote {Path(args.out) / 'blind.json'} and blind.md")

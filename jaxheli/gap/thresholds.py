@@ -29,12 +29,16 @@ class Protocol:
     calibration: tuple[int, int]
     test_from: int
 
-    def seeds(self, split: str, count: int) -> list[int]:
-        """The first ``count`` seeds of ``split`` (``"design"``, ``"calibration"`` or ``"test"``)."""
+    def seeds(self, split: str, count: int, skip: int = 0) -> list[int]:
+        """``count`` seeds of ``split`` (``"design"``, ``"calibration"`` or ``"test"``), from its first after
+        ``skip`` (past the seeds an earlier run spent)."""
         first, last = {"design": self.design, "calibration": self.calibration,
                        "test": (self.test_from, None)}[split]
+        if skip < 0:
+            raise ValueError(f"{split} seeds: skip must be >= 0, got {skip}")
+        first += skip
         if last is not None and first + count - 1 > last:
-            raise ValueError(f"{split} seeds are {first}-{last}: {count} do not fit")
+            raise ValueError(f"{split} seeds end at {last}: {count} from {first} do not fit")
         return list(range(first, first + count))
 
 
