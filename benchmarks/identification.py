@@ -15,8 +15,7 @@ flight C (``ppr_data.mat``, low-passed alike) and on A's last 40 % (held out for
 and marked so). A's whole armed session (``tested.mat``) holds no more flight: it is airborne from about row 4000 to
 row 12500 (``../shared/data/README.md``), the rows ``Data_graphready.mat`` holds (4136-12725); the rest is arming,
 spool-up and landing on the ground, which the hover model does not describe (its first 60 % holds about 40 s of
-it). Pearson, fit % and TIC per
-channel (p, q, phi, theta) over 5-s runs each from its least-squares start with a per-channel bias
+it). Pearson, fit % and TIC per channel (p, q, phi, theta) over 5-s runs each from its least-squares start with a per-channel bias
 (:func:`jaxheli.verify.verify`, issue 35's measure) and over one run (initial state estimated, and from rest), next to
 the paper's Table 2 model scored by the same code.
 
@@ -149,11 +148,10 @@ def _metrics(block: dict) -> dict:
 def _real_table(rows: list[dict], args: argparse.Namespace) -> str:
     lines = [f"# Real flights ({_machine()}; {args.iterations} generations, seed {args.seed})", "",
              "`*`: the validation record overlaps the training record. Channels p q phi theta.", ""]
-    for title, key, cols in (
-            (f"{RUN_S:g}-s runs, each from its least-squares start with a per-channel bias (`jaxheli verify`)", "runs",
-             (("pearson", "r", ".3f"), ("fit_percent", "fit", ".1f"), ("tic", "TIC", ".3f"))),
-            ("One run over the window: Pearson from rest | fit % and TIC, initial state estimated", None,
-             (("pearson", "r", ".3f"), ("fit_percent", "fit", ".1f"), ("tic", "TIC", ".3f")))):
+    cols = (("pearson", "r", ".3f"), ("fit_percent", "fit", ".1f"), ("tic", "TIC", ".3f"))
+    for title, key in (
+            (f"{RUN_S:g}-s runs, each from its least-squares start with a per-channel bias (`jaxheli verify`)", "runs"),
+            ("One run over the window: Pearson from rest | fit % and TIC, initial state estimated", None)):
         lines += [f"## {title}", "", "| train | method | validate | s | " + " | ".join(
             f"{short} {c}" for _, short, _ in cols for c in REAL_CHANNELS) + " |", "|---" * (4 + 3 * len(REAL_CHANNELS))
             + "|"]

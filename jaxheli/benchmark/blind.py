@@ -32,6 +32,7 @@ from typing import Any, NamedTuple
 
 import jax
 import numpy as np
+import scipy.stats
 
 from .._affinity import cores, on_core
 from .._progress import left, note, stage
@@ -507,18 +508,17 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
             row["shrink_vs_oracle_pct"] = float(np.median(shrunk)) if shrunk else None
         table[kind] = row
     controls = [r for r in records if r["kind"] == "none"]
-    named = sum(r["top"] != "none" for r in controls)
-    fp = _pct([r["top"] != "none" for r in controls])
-    return {"kinds": table, "false_positive_pct": fp, "false_positives": named, "controls": len(controls),
-            "false_positive_ci95_pct": wilson_interval(named, len(controls)) if controls else None}
+    named = [r["top"] != "none" for r in controls]
+    return {"kinds": table, "false_positive_pct": _pct(named), "false_positives": sum(named),
+            "controls": len(controls), "false_positive_ci95_pct": wilson_interval(sum(named), len(controls))
+            if controls else None}
 
 
-def wilson_interval(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
-    """Wilson score interval (%, 95 % by default) of a rate seen ``k`` times in ``n`` trials: what ``n`` controls
-    can say about a false-positive rate (6 of 40: 7-29 %; 0 of 40: 0-9 %)."""
-    p, z2 = k / n, z * z
-    centre, half = (p + z2 / (2 * n)) / (1 + z2 / n), z * np.sqrt(p * (1 - p) / n + z2 / (4 * n * n)) / (1 + z2 / n)
-    return 100.0 * max(0.0, float(centre - half)), 100.0 * min(1.0, float(centre + half))
+def wilson_interval(k: int, n: int) -> tuple[float, float]:
+    """95 % Wilson score interval (%) of a rate seen ``k`` times in ``n`` trials (scipy's ``binomtest``): what ``n``
+    controls can say about a false-positive rate (6 of 40: 7-29 %; 0 of 40: 0-9 %)."""
+    ci = scipy.stats.binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+    return 100.0 * float(ci.low), 100.0 * float(ci.high)
 
 
 def markdown(summary: dict[str, Any]) -> str:
@@ -588,7 +588,8 @@ def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: in
                   skip_seeds: int = 0, **options: Any) -> dict[str, Any]:
     """Run ``seeds`` blind trials per effect kind and ``control_seeds`` (default ``2 seeds``) of the control
     ``none``, on the first seeds of ``split`` after ``skip_seeds`` (the protocol of :mod:`jaxheli.gap.thresholds`:
-    every kind meets the same scenarios), with a PEM base model, and the first ``iwo_seeds`` of them again with an IWO + polish base
+    every kind meets the same scenarios), with a PEM base model, and the first ``iwo_seeds`` of them again with an
+    IWO + polish base
     (:func:`base_model`), in ``workers`` processes; write ``OUT/blind.json`` (records, :func:`summarise_bases`, the
     settings with the thresholds in force) and ``OUT/blind.md`` after every trial. ``truth`` picks the truth
     simulator (:data:`TRUTHS_SIM`), whose kinds ``kinds`` are."""
