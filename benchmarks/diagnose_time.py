@@ -1,12 +1,13 @@
 """Wall time of ``jaxheli.gap.diagnose`` on one flight pair of the independent truth simulator (issue 34's
 diagnosis timings)::
 
-    python benchmarks/diagnose_time.py [--kind logger_delay] [--seed 3] [--duration 60] [--dt 0.02] [--max-steps 15] [--cache]
+    python benchmarks/diagnose_time.py [--kind logger_delay] [--seed 3] [--duration 60] [--dt 0.02] [--max-steps 15] [--cache] [--quiet]
 
 The pair is the blind check's (:func:`jaxheli.benchmark.independent.independent_trial`, scenario of ``--seed``),
 the base model a 100-step PEM fit in the authors' box, as a user would identify it; the time printed is the
-diagnosis's alone (float64, compile included), then its verdict. ``--cache`` reads and writes compiled programs in the
-command line's cache (:func:`jaxheli.use_compile_cache`): run it twice for the time of a user's second diagnosis.
+diagnosis's alone (float64, compile included), then its verdict; progress lines go to stderr (``--quiet``: none).
+``--cache`` reads and writes compiled programs in the command line's cache (:func:`jaxheli.use_compile_cache`): run it
+twice for the time of a user's second diagnosis.
 """
 
 import argparse
@@ -16,7 +17,7 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
-from jaxheli import use_compile_cache  # noqa: E402
+from jaxheli import reporting, use_compile_cache  # noqa: E402
 from jaxheli.benchmark.blind import DEFAULT_OUTPUTS, base_model, scenario  # noqa: E402
 from jaxheli.benchmark.independent import independent_trial  # noqa: E402
 from jaxheli.gap.diagnose import diagnose  # noqa: E402
@@ -33,15 +34,17 @@ def main() -> None:
                    help=f"LM steps per candidate fit (default {MAX_STEPS}, the diagnosis's)")
     p.add_argument("--cache", action="store_true",
                    help="read and write compiled programs in $JAXHELI_CACHE (default: compile afresh)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     args = p.parse_args()
     if args.cache:
         print(f"compilation cache: {use_compile_cache()}")
     where = scenario(args.seed)
     trial = independent_trial(args.kind, args.seed, where.theta, style=where.style, noise=where.noise,
                               strength=where.strength, duration=args.duration, dt=args.dt, outputs=DEFAULT_OUTPUTS)
-    theta, _ = base_model(trial.train, "pem", args.seed, box="authors")
-    t0 = time.perf_counter()
-    found = diagnose(theta, trial.train, trial.validate, max_steps=args.max_steps)
+    with reporting(not args.quiet):
+        theta, _ = base_model(trial.train, "pem", args.seed, box="authors")
+        t0 = time.perf_counter()
+        found = diagnose(theta, trial.train, trial.validate, max_steps=args.max_steps)
     print(f"diagnose: {time.perf_counter() - t0:.1f} s ({args.duration:g} s at {1 / args.dt:g} Hz, truth {where.truth}, "
           f"{args.kind} withheld, {args.max_steps} LM steps per fit)")
     print(f"verdict: {found.attribution.verdict}")
