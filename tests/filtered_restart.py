@@ -10,8 +10,10 @@ from jaxheli.model import STATE_NAMES, build_ab, output_indices
 GUST = ("u", "v", "w")
 
 
-def reference_prediction(theta, flight, segment=2.0, track=0.1, g=9.81):
-    """Predicted outputs ``[N, k]`` of ``theta`` on ``flight`` (all its channels)."""
+def reference_prediction(theta, flight, segment=2.0, track=0.1, g=9.81, smooth=False):
+    """Predicted outputs ``[N, k]`` of ``theta`` on ``flight`` (all its channels); ``smooth``: each segment's
+    restart state then moved by the least squares of the segment's readings with the filter's covariance as its
+    prior (normal equations, one segment at a time)."""
     A, B = (np.asarray(M) for M in build_ab(np.asarray(theta), g))
     wind = -A[:, [STATE_NAMES.index(s) for s in GUST]]
     n, m, dt = A.shape[0], len(GUST), flight.dt
@@ -46,4 +48,14 @@ def reference_prediction(theta, flight, segment=2.0, track=0.1, g=9.81):
             x, w = z[:n].copy(), z[n:].copy()
         else:
             w = rho * w
+    if smooth:
+        updated = P - P @ H.T @ np.linalg.solve(H @ P @ H.T + R, H @ P)
+        for start in range(0, len(y) - 1, seg):
+            times = range(start + 1, min(start + seg, len(y) - 1) + 1)
+            phis = [H @ np.linalg.matrix_power(F, t - start) for t in times]
+            info = np.linalg.inv(updated) + sum(p.T @ np.linalg.solve(R, p) for p in phis)
+            rhs = sum(p.T @ np.linalg.solve(R, y[t] - out[t]) for p, t in zip(phis, times))
+            d = np.linalg.solve(info, rhs)
+            for p, t in zip(phis, times):
+                out[t] = out[t] + p @ d
     return out

@@ -56,6 +56,20 @@ def test_no_effect_predictor_matches_numpy_filtered_restarts():
     assert np.all(energy(got)[[0, 1, 6]] < 0.8 * energy(sim)[[0, 1, 6]])
 
 
+def test_smoothed_restarts_match_numpy_least_squares_per_segment():
+    """Each segment restarted from the least squares of its own readings (the filter's covariance the prior):
+    the jitted projection against per-segment normal equations; the readings are then closer than with the
+    filter's restart alone."""
+    flight = _flight(None, noise=1.0, duration=19.0)
+    expected = reference_prediction(TABLE2, flight, segment=2.0, track=0.1, smooth=True)
+    got = np.asarray(make_predictor(flight, segment=2.0, track=0.1, smooth=True)(
+        jnp.asarray(TABLE2), jnp.asarray(augmented.no_effect(OUT))))
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-6 * np.abs(expected).max())
+    filtered = reference_prediction(TABLE2, flight, segment=2.0, track=0.1)
+    energy = lambda y: np.sum((y - flight.outputs) ** 2, axis=0)
+    assert np.all(energy(got) < energy(filtered))
+
+
 def test_restart_filter_trusts_the_true_model_and_follows_the_sensors_through_gusts():
     calm = make_predictor(_flight(None, noise=1.0), segment=2.0)
     assert tune_track(calm, jnp.asarray(TABLE2)) == TRACKS[0]
@@ -111,13 +125,15 @@ def test_sensor_model_rotation_scale_bias_and_inverse():
 def test_riccati_matches_scipy_and_gain_vanishes_without_gusts():
     plant = augmented.make_plant(jnp.asarray(TABLE2), jnp.asarray(_eta(gust=(0, 0.6))), DT, OUT)
     var = jnp.asarray([2e-3, 2e-3, 2e-4, 2e-4, 3e-5, 3e-5, 2e-3, 2e-4])
-    F, _, K = gust_filter(plant, var)
+    F, _, K, _ = gust_filter(plant, var)
     H = np.concatenate([np.asarray(plant.C), np.zeros((8, 3))], axis=1)
     rho = np.exp(-DT / 1.0)
     Q = np.diag(np.r_[np.full(13, 1e-12), np.full(3, 0.36 * (1 - rho**2) + 1e-12)])
     P = scipy.linalg.solve_discrete_are(np.asarray(F).T, H.T, Q, np.diag(np.asarray(var)))
     np.testing.assert_allclose(riccati(F, jnp.asarray(H), jnp.asarray(Q), jnp.diag(var)), P, rtol=1e-7, atol=1e-12)
     np.testing.assert_allclose(K, P @ H.T @ np.linalg.inv(H @ P @ H.T + np.diag(np.asarray(var))), rtol=1e-4, atol=1e-8)
+    updated = P - P @ H.T @ np.linalg.solve(H @ P @ H.T + np.diag(np.asarray(var)), H @ P)
+    np.testing.assert_allclose(gust_filter(plant, var)[3], updated, rtol=1e-5, atol=1e-9)
     quiet = augmented.make_plant(jnp.asarray(TABLE2), jnp.asarray(augmented.no_effect(OUT)), DT, OUT)
     assert np.max(np.abs(np.asarray(gust_filter(quiet, var)[2])[13:])) < 1e-3
 

@@ -39,8 +39,9 @@ def riccati(
 
 def gust_filter(
     plant: Plant, noise_var: Float[Array, "k"], track: float = 0.0
-) -> tuple[Array, Array, Array]:
-    """``(F, G, K)``: augmented transition ``[x, wind]``, stick input and steady-state filter gain.
+) -> tuple[Array, Array, Array, Array]:
+    """``(F, G, K, P)``: augmented transition ``[x, wind]``, stick input, steady-state filter gain and the
+    covariance of the updated state ``z|k`` (the error of a restart from it).
 
     ``plant``'s ``gust`` group gives sigma (m/s), tau (s) and a cut ``c`` of ``track`` (to ``track e^-|c|``);
     ``noise_var`` is each output's measurement noise variance. Each measured state carries process noise of
@@ -60,4 +61,5 @@ def gust_filter(
     R = jnp.diag(noise_var)
     P = riccati(F, H, jnp.diag(q), R)
     K = P @ H.T @ jnp.linalg.inv(H @ P @ H.T + R)
-    return F, G, K
+    updated = P - K @ H @ P
+    return F, G, K, 0.5 * (updated + updated.T)

@@ -44,10 +44,11 @@ class Predictor(eqx.Module):
     g: float = eqx.field(static=True)
     max_delay: float = eqx.field(static=True)
     track: Float[Array, ""]
+    smooth: bool = eqx.field(static=True, default=False)
 
     def __call__(self, theta: Float[Array, "40"], eta: Float[Array, "E"]) -> Float[Array, "N k"]:
         plant = make_plant(theta, eta, self.dt, self.outputs, g=self.g, max_delay=self.max_delay)
-        F, _, K = gust_filter(plant, self.noise_var, self.track)
+        F, _, K, P = gust_filter(plant, self.noise_var, self.track)
         idx = jnp.asarray(output_indices(self.outputs))
         rho = F[-1, -1]
         states = plant.unmeasure(self.measured, self.time)
@@ -71,6 +72,9 @@ class Predictor(eqx.Module):
         z0 = jnp.concatenate([x0, jnp.zeros(len(GUST_STATES))])
         init = (x0, jnp.zeros(len(GUST_STATES)), history, servo, rotor, z0)
         _, ys = jax.lax.scan(step, init, (self.inputs[:-1], states[1:], restart))
+        if self.smooth:
+            H = jnp.concatenate([plant.C, jnp.zeros((plant.C.shape[0], len(GUST_STATES)))], axis=1)
+            ys = ys + restart_correction(states[1:] - ys, F, H, P, self.noise_var, self.segment_samples)
         ys = jnp.concatenate([x0[idx][None, :], ys], axis=0)
         return jax.vmap(plant.measure)(jnp.zeros((ys.shape[0], N_STATES)).at[:, idx].set(ys), self.time)
 
@@ -86,6 +90,35 @@ class Predictor(eqx.Module):
         seg = np.arange(self.time.shape[0]) // self.window_samples
         onehot = jnp.asarray(np.eye(int(seg[-1]) + 1)[seg])
         return jnp.einsum("...nk,ns->...s", err, onehot)
+
+
+def restart_correction(
+    residual: Float[Array, "M k"], F: Float[Array, "n n"], H: Float[Array, "k n"], P: Float[Array, "n n"],
+    noise_var: Float[Array, "k"], segment: int,
+) -> Float[Array, "M k"]:
+    """Each segment's restart state re-estimated from the segment's own readings: the change of its predicted
+    output states (``residual[m]``: readings minus prediction ``m + 1`` samples after the first restart, a restart
+    every ``segment`` samples) when the restart state moves by the least-squares ``d`` of
+    ``sum_j |r_j - H F^j d|^2 / noise_var + d' P^-1 d`` (``P``: the filter's covariance of the restart state, the
+    prior; ``j = 1 .. segment`` samples after it). The free response of the linear part is exact; airframe terms
+    (drag, rotor speed) are held where the filter's restart put them. Restarts from a filter of the past alone
+    leave errors that grow along the segment, and a least-squares fit of the dynamics then bends the model to
+    shrink them (on effect-free flights of the model class it moved the parameters far from the truth); with the
+    restart estimated from the segment too, the residual is what the dynamics cannot explain."""
+    m, k = residual.shape
+    count = -(-m // segment)
+
+    def power(Fj, _):
+        Fj = F @ Fj
+        return Fj, H @ Fj
+
+    _, phi = jax.lax.scan(power, jnp.eye(F.shape[0], dtype=F.dtype), None, length=segment)
+    w = 1.0 / noise_var
+    seen = (jnp.arange(count * segment) < m).reshape(count, segment).astype(residual.dtype)
+    info = jnp.einsum("sj,jka,k,jkb->sab", seen, phi, w, phi) + jnp.linalg.inv(P)[None]
+    r = jnp.zeros((count * segment, k), residual.dtype).at[:m].set(residual).reshape(count, segment, k)
+    d = jnp.linalg.solve(info, jnp.einsum("jka,k,sjk->sa", phi, w, r)[..., None])[..., 0]
+    return jnp.einsum("jka,sa->sjk", phi, d).reshape(count * segment, k)[:m]
 
 
 TRACK = 0.1
@@ -110,7 +143,7 @@ def noise_variance(outputs: Float[np.ndarray, "N k"]) -> Float[np.ndarray, "k"]:
 
 def make_predictor(
     data: FlightData | Problem, *, segment: float = 2.0, g: float = G_SI, max_delay: float = 0.3,
-    window: float = 0.5, track: float = TRACK,
+    window: float = 0.5, track: float = TRACK, smooth: bool = False,
 ) -> Predictor:
     """Predictor of a record restarting every ``segment`` s from the filtered state (process noise ``track``,
     see :data:`TRACK`); delays up to ``max_delay`` s; residual energy in windows of ``window`` s
@@ -151,6 +184,7 @@ def make_predictor(
         g=float(g),
         max_delay=float(max_delay),
         track=jnp.asarray(float(track)),
+        smooth=smooth,
     )
 
 

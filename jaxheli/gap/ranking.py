@@ -352,7 +352,7 @@ def verdict(
 
 def predictor_pair(
     theta: Float[ArrayLike, "40"], train: FlightData | Problem | Predictor, validate: FlightData | Problem | Predictor, *,
-    segment: float = 2.0, g: float = G_SI, track: float | None = None,
+    segment: float = 2.0, g: float = G_SI, track: float | None = None, smooth: bool = False,
 ) -> tuple[Predictor, Predictor]:
     """The predictors of the training and validation records (flights or problems), built once each
     (predictors are taken as they are): restarts every ``segment`` s, the restart filter at ``track`` (``None``: the level
@@ -363,7 +363,7 @@ def predictor_pair(
     if names[0] != names[1]:
         raise ValueError(f"{validate.source}: output channels {names[1]} differ from the training "
                          f"flight's {names[0]} ({train.source})")
-    train_pred = make_predictor(train, segment=segment, g=g)
+    train_pred = make_predictor(train, segment=segment, g=g, smooth=smooth)
     level = tune_track(train_pred, theta) if track is None else float(track)
     train_pred = dataclasses.replace(train_pred, track=jnp.asarray(level))
-    return train_pred, make_predictor(validate, segment=segment, g=g, track=level)
+    return train_pred, make_predictor(validate, segment=segment, g=g, track=level, smooth=smooth)
