@@ -186,6 +186,10 @@ BASES: tuple[str, ...] = ("pem", "iwo+polish")
 paper's IWO on the Pearson cost followed by the output-error polish (:func:`~jaxheli.identify.identify`)."""
 
 
+RESTARTS: tuple[str, ...] = ("filter", "segment")
+"""Where every prediction of a trial's diagnosis restarts (:func:`run_trial`'s ``restart``)."""
+
+
 class Trial(NamedTuple):
     """One blind trial: effect kind, seed and base-model method (:data:`BASES`)."""
 
@@ -243,7 +247,7 @@ def trial_flights(
 def run_trial(
     kind: str, seed: int, *, base: str = "pem", truth: str = "library", duration: float = 30.0, dt: float = 0.05,
     segment: float = 2.0, max_steps: int = MAX_STEPS, pem_steps: int = 100, iterations: int = 1000,
-    min_shrink: float = MIN_SHRINK, box: str = "hull",
+    min_shrink: float = MIN_SHRINK, box: str = "hull", restart: str = "filter",
 ) -> dict[str, Any]:
     """One blind trial: scenario and injection of ``seed``, flights, base model identified on the training
     flight by ``base`` (:func:`base_model`), joint diagnosis and oracle; the record (verdict, attribution, shrinks,
@@ -253,9 +257,13 @@ def run_trial(
     where it is the named effect, else its training fit (``estimate``, ``magnitude_error``); beside it the training
     fit's (``estimate_train``, ``magnitude_error_train``) and the oracle's (``oracle_estimate``,
     ``oracle_magnitude_error``). The base model is identified, and the diagnosis starts, in ``box``
-    (:data:`BOXES`); the base model's structure is its first hypothesis (:func:`~jaxheli.gap.ranking.staged`)."""
+    (:data:`BOXES`); the base model's structure is its first hypothesis (:func:`~jaxheli.gap.ranking.staged`).
+    Every prediction restarts every ``segment`` s from the filter's state (``restart="filter"``) or from that
+    state re-estimated by the segment's own readings (``"segment"``, :func:`~jaxheli.gap.predictor.restart_correction`)."""
     if box not in BOXES:
         raise ValueError(f"blind trial: unknown box {box!r}; boxes are {tuple(BOXES)}")
+    if restart not in RESTARTS:
+        raise ValueError(f"blind trial: unknown restart {restart!r}; restarts are {RESTARTS}")
     where = scenario(seed)
     inj, train, validate, right, facts = trial_flights(truth, kind, seed, where, duration=duration, dt=dt,
                                                        outputs=DEFAULT_OUTPUTS)
@@ -267,7 +275,7 @@ def run_trial(
     with stage(f"base model by {base} on the training flight"):
         theta, ident = base_model(train, base, seed, pem_steps=pem_steps, iterations=iterations, outputs=outputs,
                                   box=box)
-    train_pred, validate_pred = predictor_pair(theta, train, validate, segment=segment)
+    train_pred, validate_pred = predictor_pair(theta, train, validate, segment=segment, smooth=restart == "segment")
     *arrays, owner = fx.tried_arrays(fx.ALL, outputs)
     oracle = _oracle_row(inj.kind, inj, *fx.candidate_arrays(fx.ALL, outputs))
     arrays = tuple(np.vstack([a, o]) for a, o in zip(arrays, oracle))
@@ -290,7 +298,7 @@ def run_trial(
               "oracle_shrink_pct": 100.0 * (1.0 - float(np.mean(scored.rows.gap[-1]) / np.mean(credited.gap[0]))),
               "oracle_evidence_z": (fx.evidence(inj.kind, outputs, oracle_z, oracle_stderr)
                                     if inj.kind != "none" else None),
-              "box": box, "base": ident, "base_refit": _untheta(refit),
+              "box": box, "restart": restart, "segment_s": segment, "base": ident, "base_refit": _untheta(refit),
               "structure": None if structure is None else _untheta(structure),
               "structure_named": structure_leads(ranking, structure),
               "recheck": [_untheta(e) for e in stages.recheck],

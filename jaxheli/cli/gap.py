@@ -9,7 +9,7 @@ from pathlib import Path
 from ..effects import registry as fx
 from ..evaluate import resolve_params
 from ..flights import DEFAULT_DATA
-from ..benchmark.blind import BOXES, TRUTHS_SIM, markdown, run_benchmark, summarise_records
+from ..benchmark.blind import BOXES, RESTARTS, TRUTHS_SIM, markdown, run_benchmark, summarise_records
 from ..gap.compare import localise_model, write_localisation
 from ..gap.consistency import MAX_TRAVEL_M, check, write_check
 from ..gap.diagnose import diagnose, ranking_table, write_diagnosis
@@ -111,6 +111,12 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                    help="box the base model is identified and diagnosed in: the hull of both truth classes, or "
                         "the command line's default (the authors' TREX box, which the R-50 truths leave; default "
                         "hull)")
+    p.add_argument("--segment", type=float, default=2.0,
+                   help="restart interval of the diagnosis's predictions, s (default 2)")
+    p.add_argument("--restart", choices=RESTARTS, default="filter",
+                   help="each prediction restarts from the Kalman filter's state of the readings before it "
+                        "(filter) or from that state re-estimated by least squares on the segment's own readings "
+                        "(segment; default filter)")
     p.add_argument("--duration", type=float, default=30.0, help="flight length, s (default 30)")
     p.add_argument("--dt", type=float, default=0.05, help="sample time, s (default 0.05)")
     p.add_argument("--max-steps", type=int, default=MAX_STEPS, help="LM steps per candidate fit (default %(default)s)")
@@ -202,7 +208,8 @@ def _cmd_blind(args: argparse.Namespace) -> int:
     summary = run_benchmark(kinds, args.seeds, args.out, workers=args.workers, iwo_seeds=args.iwo_seeds,
                             truth=args.truth, split=args.split, control_seeds=args.control_seeds,
                             skip_seeds=args.skip_seeds, duration=args.duration, dt=args.dt, max_steps=args.max_steps,
-                            pem_steps=args.pem_steps, iterations=args.iterations, box=args.box)
+                            pem_steps=args.pem_steps, iterations=args.iterations, box=args.box,
+                            segment=args.segment, restart=args.restart)
     print(markdown(summary))
     print(f"runtime {summary['runtime_s']:.0f} s; wrote {Path(args.out) / 'blind.json'} and blind.md")
     return 0
