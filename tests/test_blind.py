@@ -159,7 +159,8 @@ def test_trials_run_on_the_protocols_seeds_and_record_the_thresholds(tmp_path, m
                  "base": {"method": t.base}} for t in trials]
 
     monkeypatch.setattr(blind, "run_blind", fake)
-    summary = blind.run_benchmark(["input_delay", "none"], 2, tmp_path, split="test", iwo_seeds=1)
+    summary = blind.run_benchmark(["input_delay", "none"], 2, tmp_path, split="test", iwo_seeds=1, restart="segment",
+                                  segment=6.0)
     first = THRESHOLDS.protocol.test_from
     assert sorted((t.kind, t.seed) for t in seen if t.base == "pem") == sorted(
         [("input_delay", first), ("input_delay", first + 1)] + [("none", first + i) for i in range(4)])
@@ -167,6 +168,7 @@ def test_trials_run_on_the_protocols_seeds_and_record_the_thresholds(tmp_path, m
     settings = summary["settings"]
     assert settings["split"] == "test" and settings["seed_range"] == [first, first + 3]
     assert settings["thresholds"]["min_shrink"] == THRESHOLDS.min_shrink and settings["thresholds"]["file"]
+    assert settings["restart"] == "segment" and settings["segment"] == 6.0
 
 
 def test_no_fit_starts_at_an_injected_value():
@@ -206,6 +208,14 @@ def test_a_trial_without_a_constant_channel_keeps_every_other_effect_value():
 def test_an_unknown_base_method_is_named():
     with pytest.raises(ValueError, match="unknown base method 'oracle'"):
         base_model(blind_flights(sample_injection("none", 0), 0, scenario(0), duration=12.0)[0], "oracle", 0)
+
+
+def test_an_unknown_restart_or_box_is_named_before_any_flight():
+    from jaxheli.benchmark.blind import run_trial
+    with pytest.raises(ValueError, match="unknown restart 'smoothed'; restarts are"):
+        run_trial("none", 0, restart="smoothed")
+    with pytest.raises(ValueError, match="unknown box 'wide'"):
+        run_trial("none", 0, box="wide")
 
 
 def test_validation_flight_differs_from_training_flight():
