@@ -104,7 +104,8 @@ def restart_correction(
     (drag, rotor speed) are held where the filter's restart put them. Restarts from a filter of the past alone
     leave errors that grow along the segment, and a least-squares fit of the dynamics then bends the model to
     shrink them (on effect-free flights of the model class it moved the parameters far from the truth); with the
-    restart estimated from the segment too, the residual is what the dynamics cannot explain."""
+    restart estimated from the segment too, the residual is what the dynamics cannot explain. The first segment,
+    started from the first readings, gets the same prior."""
     m, k = residual.shape
     count = -(-m // segment)
 
@@ -146,7 +147,8 @@ def make_predictor(
     window: float = 0.5, track: float = TRACK, smooth: bool = False,
 ) -> Predictor:
     """Predictor of a record restarting every ``segment`` s from the filtered state (process noise ``track``,
-    see :data:`TRACK`); delays up to ``max_delay`` s; residual energy in windows of ``window`` s
+    see :data:`TRACK`; ``smooth``: each restart then re-estimated from its segment's readings too,
+    :func:`restart_correction`); delays up to ``max_delay`` s; residual energy in windows of ``window`` s
     (:meth:`Predictor.segment_energy`). ``data`` is a flight (all its output channels, gravity ``g``) or a
     :class:`~jaxheli.problem.Problem` (its scored channels and its ``g``)."""
     if isinstance(data, Problem):
