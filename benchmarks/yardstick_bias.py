@@ -1,6 +1,6 @@
 """Is the diagnosis's yardstick consistent? The base model re-fitted alone from the *truth* on effect-free flights::
 
-    python benchmarks/yardstick_bias.py [--truth independent] [--seeds 109 157 195] [--segment 2] [--restart filter]
+    python benchmarks/yardstick_bias.py [--truth independent] [--seeds 109 157 195] [--segment 2] [--restart filter] [--quiet]
 
 On an effect-free control flight of a blind-check scenario (:func:`jaxheli.benchmark.blind.trial_flights`, kind
 ``none``: the truth model plus white sensor noise), the reference of :mod:`jaxheli.gap.reference` (the base model
@@ -10,7 +10,7 @@ can fit and the held-out gap stays the truth's. Printed per seed: the training R
 the validation gap (channel-mean nmse of :func:`jaxheli.gap.fit_effect.score`) of both, and how far the re-fit moved
 (Euclidean norm of the parameter change over the box widths). The truth is handed in: a probe of the objective,
 not a score of the diagnosis. ``--restart segment`` re-estimates every restart from the segment's own readings
-(:func:`jaxheli.gap.predictor.restart_correction`).
+(:func:`jaxheli.gap.predictor.restart_correction`). The re-fit's rounds are reported on stderr (``--quiet``: none).
 """
 
 import argparse
@@ -22,14 +22,14 @@ jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
+from jaxheli import reporting  # noqa: E402
 from jaxheli.benchmark.blind import BOXES, DEFAULT_OUTPUTS, RESTARTS, TRUTHS_SIM, scenario, trial_flights  # noqa: E402
 from jaxheli.bounds import Bounds  # noqa: E402
 from jaxheli.effects import registry as fx  # noqa: E402
 from jaxheli.effects.plant import no_effect  # noqa: E402
-from jaxheli.gap.fit_effect import embed, score, with_reference  # noqa: E402
+from jaxheli.gap.fit_effect import MAX_STEPS, embed, score, with_reference  # noqa: E402
 from jaxheli.gap.ranking import predictor_pair  # noqa: E402
 from jaxheli.gap.reference import REFERENCE_STEPS, refit_alone, theta_box  # noqa: E402
-from jaxheli.gap.fit_effect import MAX_STEPS  # noqa: E402
 
 
 def probe(truth_sim: str, seed: int, segment: float, restart: str) -> dict[str, float]:
@@ -60,11 +60,13 @@ def main() -> None:
     p.add_argument("--seeds", type=int, nargs="+", default=[109, 157, 195], help="control seeds (scenarios)")
     p.add_argument("--segment", type=float, default=2.0, help="restart interval, s (default 2)")
     p.add_argument("--restart", choices=RESTARTS, default="filter", help="where predictions restart")
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     args = p.parse_args()
-    print(f"| seed | training flight | training RSS truth -> re-fit | validation gap truth -> re-fit | moved |")
+    print("| seed | training flight | training RSS truth -> re-fit | validation gap truth -> re-fit | moved |")
     print("|---|---|---|---|---|")
     for seed in args.seeds:
-        r = probe(args.truth, seed, args.segment, args.restart)
+        with reporting(not args.quiet):
+            r = probe(args.truth, seed, args.segment, args.restart)
         print(f"| {seed} | {r['style']} | {r['rss_truth']:.1f} -> {r['rss_refit']:.1f} | "
               f"{r['gap_truth']:.4f} -> {r['gap_refit']:.4f} | {r['moved']:.2f} |", flush=True)
 
