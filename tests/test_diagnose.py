@@ -252,3 +252,19 @@ def test_the_command_line_reports_every_stage_and_quiet_only_the_result(delayed,
     assert quiet_err == ""
     assert quiet_out == out.replace(str(folder), str(tmp_path / "quiet"))  # the same result
     assert not any(t.name == "jaxheli-progress" for t in threading.enumerate())
+
+
+def test_segment_restarts_reach_every_gap_and_the_record(delayed, tmp_path):
+    """``--restart segment``: the base model's gaps are those of the numpy predictor whose every restart is
+    re-estimated from its segment's readings (tests/filtered_restart.py), the plots use it, and the record says so."""
+    _, validate, filtered, *_, argv, _ = delayed
+    out, _, _ = console_run([*argv, "--effects", "input_delay", "--restart", "segment", "--out", str(tmp_path)])
+    assert "restart segment" in out
+    d = json.loads((tmp_path / "diagnosis.json").read_text())
+    assert d["restart"] == "segment" and d["localisation"]["simulation"]["restart"] == "segment"
+    assert Diagnosis.from_json(d).to_json() == d
+    assert filtered["restart"] == "filter"
+    reference = reference_prediction(TABLE2, validate, segment=2.0, track=d["track"], smooth=True)
+    np.testing.assert_allclose([d["gap_before"]["channel"][c] for c in OUT], nmse(reference, validate.outputs),
+                               rtol=1e-6)
+    assert not np.allclose(d["gap_before"]["total"], filtered["gap_before"]["total"], rtol=1e-3)

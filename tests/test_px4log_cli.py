@@ -1,6 +1,9 @@
 """``jaxheli evaluate | identify | diagnose`` on every shared .px4log: u and v never move in those logs, so they
 are left out with a one-line note instead of the Pearson cost failing on a constant channel."""
 
+import json
+
+import numpy as np
 import pytest
 
 from jaxheli.cli import main
@@ -34,5 +37,9 @@ def test_identify_every_shared_px4log(shared_data, capsys, tmp_path, name):
 def test_diagnose_on_shared_px4logs(shared_data, capsys, tmp_path):
     logs = shared_data / "px4logs"
     _run(capsys, ["diagnose", "--model", "table2", "--train", str(logs / LOGS[2]), "--validate", str(logs / LOGS[1]),
-                  "--effects", "input_delay", "--max-steps", "2", "--track", "1", "--top", "1", "--out", str(tmp_path)])
-    assert (tmp_path / "diagnosis.json").is_file()
+                  "--effects", "input_delay", "--max-steps", "2", "--track", "1", "--top", "1", "--frozen-base", "--out",
+                  str(tmp_path)])
+    diagnosis = json.loads((tmp_path / "diagnosis.json").read_text())
+    assert "u" not in diagnosis["outputs"] and "v" not in diagnosis["outputs"]  # constant in these logs: left out
+    assert [e["effect"] for e in diagnosis["ranking"]] == ["input_delay"]
+    assert np.isfinite(diagnosis["ranking"][0]["shrink_pct"])

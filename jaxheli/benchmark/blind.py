@@ -48,6 +48,7 @@ from ..synth.excitation import Excitation
 from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
 from ..gap.final_fit import final_fit
 from ..gap.fit_effect import MAX_STEPS
+from ..gap.predictor import RESTARTS
 from ..gap.records import Entry, Final, Refit, Structure
 from ..gap.ranking import predictor_pair, staged, structure_leads
 from ..gap.reference import theta_box
@@ -184,10 +185,6 @@ def _library_detectability(injection: Injection, seed: int, where: Scenario, *, 
 BASES: tuple[str, ...] = ("pem", "iwo+polish")
 """How a trial's base model is identified on its training flight: PEM (:func:`~jaxheli.optim.pem.pem`), or the
 paper's IWO on the Pearson cost followed by the output-error polish (:func:`~jaxheli.identify.identify`)."""
-
-
-RESTARTS: tuple[str, ...] = ("filter", "segment")
-"""Where every prediction of a trial's diagnosis restarts (:func:`run_trial`'s ``restart``)."""
 
 
 class Trial(NamedTuple):

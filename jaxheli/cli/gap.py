@@ -9,11 +9,12 @@ from pathlib import Path
 from ..effects import registry as fx
 from ..evaluate import resolve_params
 from ..flights import DEFAULT_DATA
-from ..benchmark.blind import BOXES, RESTARTS, TRUTHS_SIM, markdown, run_benchmark, summarise_records
+from ..benchmark.blind import BOXES, TRUTHS_SIM, markdown, run_benchmark, summarise_records
 from ..gap.compare import localise_model, write_localisation
 from ..gap.consistency import MAX_TRAVEL_M, check, write_check
 from ..gap.diagnose import diagnose, ranking_table, write_diagnosis
 from ..gap.fit_effect import MAX_STEPS
+from ..gap.predictor import RESTARTS
 from ..gap.significance import MIN_SHRINK
 from ..gap.prepare import prepare
 from ..model import G_SI
@@ -49,6 +50,13 @@ def add_localise_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     return p
 
 
+def _add_restart_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--restart", choices=RESTARTS, default="filter",
+                   help="each prediction restarts from the Kalman filter's state of the readings before it "
+                        "(filter) or from that state re-estimated by least squares on the segment's own readings "
+                        "(segment; default filter)")
+
+
 def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``jaxheli diagnose --model M --data FILE[:t0-t1] --validate FILE[:t0-t1] --out DIR`` on the CLI's
     sub-command parsers (``--train`` the role name of ``--data``)."""
@@ -61,6 +69,7 @@ def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     p.add_argument("--effects", default=",".join(fx.ALL),
                    help=f"comma-separated candidates (default: {','.join(fx.ALL)})")
     p.add_argument("--segment", type=float, default=2.0, help="restart interval of the predictions, s (default 2)")
+    _add_restart_option(p)
     p.add_argument("--track", type=float, default=None,
                    help="restart filter's process noise per sample, in measurement-noise stds (default: the level "
                         "of 0.1-10 that suits the model best on the training flight)")
@@ -113,10 +122,7 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                         "hull)")
     p.add_argument("--segment", type=float, default=2.0,
                    help="restart interval of the diagnosis's predictions, s (default 2)")
-    p.add_argument("--restart", choices=RESTARTS, default="filter",
-                   help="each prediction restarts from the Kalman filter's state of the readings before it "
-                        "(filter) or from that state re-estimated by least squares on the segment's own readings "
-                        "(segment; default filter)")
+    _add_restart_option(p)
     p.add_argument("--duration", type=float, default=30.0, help="flight length, s (default 30)")
     p.add_argument("--dt", type=float, default=0.05, help="sample time, s (default 0.05)")
     p.add_argument("--max-steps", type=int, default=MAX_STEPS, help="LM steps per candidate fit (default %(default)s)")
@@ -179,12 +185,12 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     validate = prepare(read_flight(args.validate, args), correct_data=args.correct)
     diagnosis = diagnose(
         args.model, train, validate, outputs=outputs(args.outputs), effects=chosen, segment=args.segment,
-        top=args.top, g=args.g, max_steps=args.max_steps, min_shrink=args.min_shrink, track=args.track,
+        restart=args.restart, top=args.top, g=args.g, max_steps=args.max_steps, min_shrink=args.min_shrink, track=args.track,
         joint=not args.frozen_base,
     )
     found = diagnosis.attribution
     print(f"diagnosis of {args.model}: trained on {train.source}, validated on {validate.source} "
-          f"(segment {args.segment:g} s, restart filter level {found.track:g}; "
+          f"(segment {args.segment:g} s, restart {args.restart}, restart filter level {found.track:g}; "
           f"channels {','.join(diagnosis.outputs)})")
     for line in ranking_table(diagnosis):
         print(line)

@@ -36,7 +36,7 @@ from .consistency import check
 from .compare import frequency_comparison, localise_prediction
 from .localisation_record import Localisation
 from .fit_effect import MAX_STEPS, effect_eta as effect_eta
-from .predictor import Predictor, make_predictor
+from .predictor import RESTARTS, Predictor, make_predictor
 from .ranking import diagnose_effects, predictor_pair
 from .records import Diagnosis, Entry, FlightSummary, Gap
 from .significance import MIN_SHRINK
@@ -83,6 +83,7 @@ def diagnose(
     outputs: Sequence[str] | None = None,
     effects: Sequence[str] = fx.ALL,
     segment: float = 2.0,
+    restart: str = "filter",
     top: int = 3,
     g: float = G_SI,
     localise_train: bool = True,
@@ -96,10 +97,12 @@ def diagnose(
 
     Effects are fitted on ``train`` jointly with the base parameters in ``bounds`` (``joint=False``: the base
     model held fixed) and scored on ``validate`` (:func:`~jaxheli.gap.ranking.diagnose_effects`, with ``top``,
-    ``max_steps`` and ``min_shrink``); ``segment`` (s) is the restart interval of every prediction and ``track``
-    the restart filter's level (``None``: tuned on ``train``). ``outputs`` default to :func:`shared_outputs`;
+    ``max_steps`` and ``min_shrink``); ``segment`` (s) is the restart interval of every prediction, ``restart`` where it restarts
+    (:data:`~jaxheli.gap.predictor.RESTARTS`) and ``track`` the restart filter's level (``None``: tuned on ``train``). ``outputs`` default to :func:`shared_outputs`;
     ``localise_train`` localises the training flight's gap too.
     """
+    if restart not in RESTARTS:
+        raise ValueError(f"diagnose: unknown restart {restart!r}; restarts are {RESTARTS}")
     theta = resolve_params(model)
     names = tuple(outputs) if outputs is not None else shared_outputs(train, validate)
     for role, flight in (("train", train), ("validate", validate)):
@@ -123,7 +126,7 @@ def diagnose(
     problems = [make_problem(f, outputs=names, g=g) for f in (train, validate)]
     with stage("predictors of both flights" + (", the restart filter tuned on the training flight"
                                                if track is None else "")) as now:
-        preds = predictor_pair(theta, *problems, segment=segment, g=g, track=track)
+        preds = predictor_pair(theta, *problems, segment=segment, g=g, track=track, smooth=restart == "segment")
         now.outcome = f"restart filter level {float(preds[0].track):g}"
     attribution = diagnose_effects(theta, *preds, list(effects), top=top, joint=joint, bounds=bounds,
                                    max_steps=max_steps, min_shrink=min_shrink)
@@ -135,25 +138,31 @@ def diagnose(
             flights={role: _flight_summary(f) for role, f in (("train", train), ("validate", validate))},
             outputs=names,
             segment_s=segment,
+            restart=restart,
             consistency=consistency,
-            localisation=_localise_base(theta, validate, preds[1], segment),
+            localisation=_localise_base(theta, validate, preds[1], segment, restart),
             attribution=attribution,
             gap_before=gaps[0],
             gap_best=gaps[1],
             gap_combination=gaps[2] if len(gaps) > 2 else None,
-            localisation_train=_localise_base(theta, train, preds[0], segment) if localise_train else None,
+            localisation_train=_localise_base(theta, train, preds[0], segment, restart) if localise_train else None,
         )
 
 
 def _localise_base(
-    theta: Float[np.ndarray, "40"], flight: FlightData, pred: Predictor, segment: float,
+    theta: Float[np.ndarray, "40"], flight: FlightData, pred: Predictor, segment: float, restart: str,
 ) -> Localisation:
-    """Where the base model's segment-wise prediction ``pred`` (restarts every ``segment`` s) misses
-    ``flight`` (:func:`localise_prediction`)."""
+    """Where the base model's segment-wise prediction ``pred`` (restarts every ``segment`` s, ``restart``:
+    :data:`~jaxheli.gap.predictor.RESTARTS`) misses ``flight`` (:func:`localise_prediction`)."""
     base = predictions(theta, pred, [])[0]
-    simulation = {"predictor": "segment-wise, restarts from the Kalman-filtered state (jaxheli.gap.predictor)",
-                  "segment": segment, "track": float(pred.track), "g": pred.g, "hold": "zoh"}
+    simulation = {"predictor": f"segment-wise, restarts from the Kalman-filtered state{_RESTARTED[restart]} "
+                               "(jaxheli.gap.predictor)",
+                  "segment": segment, "restart": restart, "track": float(pred.track), "g": pred.g, "hold": "zoh"}
     return localise_prediction(theta, flight, base, flight.output_names, simulation)
+
+
+_RESTARTED = {"filter": "", "segment": " re-estimated from each segment's readings"}
+"""How each restart is described in the localisation's ``simulation``."""
 
 
 def _gap(gap: np.ndarray, names: tuple[str, ...]) -> Gap:
@@ -185,7 +194,8 @@ def write_diagnosis(
     (out / "consistency.json").write_text(json.dumps(content["consistency"], indent=1))
     shown = diagnosis.attribution.shown
     with stage(f"plots in {out}"):
-        pred = make_predictor(flight, segment=diagnosis.segment_s, g=g, track=diagnosis.attribution.track)
+        pred = make_predictor(flight, segment=diagnosis.segment_s, g=g, track=diagnosis.attribution.track,
+                              smooth=diagnosis.restart == "segment")
         estimate, model = frequency_comparison(theta, flight, names, g)
         return [
             out / "diagnosis.json",

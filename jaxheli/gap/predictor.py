@@ -122,6 +122,11 @@ def restart_correction(
     return jnp.einsum("jka,sa->sjk", phi, d).reshape(count * segment, k)[:m]
 
 
+RESTARTS: tuple[str, ...] = ("filter", "segment")
+"""Where every prediction restarts: from the Kalman filter's state of the readings before the restart (``filter``),
+or from that state re-estimated by least squares on the segment's own readings too (``segment``: ``smooth``,
+:func:`restart_correction`)."""
+
 TRACK = 0.1
 """Default process-noise level of the restart filter, as a fraction of each channel's measurement-noise
 standard deviation per sample (:func:`jaxheli.gap.kalman.gust_filter`'s ``track``)."""

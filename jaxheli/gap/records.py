@@ -230,7 +230,9 @@ class Diagnosis:
     Attributes:
         model: what the model was given as (a file or set name, or ``"given parameters"``).
         flights: ``{"train", "validate"}`` summaries.
-        outputs: the channels diagnosed; ``segment_s`` the predictions' restart interval (s).
+        outputs: the channels diagnosed; ``segment_s`` the predictions' restart interval (s), ``restart`` where
+            they restart (:data:`~jaxheli.gap.predictor.RESTARTS`; ``"filter"`` in files written before it was
+            recorded).
         consistency: data-consistency findings of both flights, as JSON (:meth:`Finding.to_json` with a
             ``flight`` key).
         localisation: where the base model misses the validation flight
@@ -253,6 +255,7 @@ class Diagnosis:
     gap_best: Gap
     gap_combination: Gap | None
     localisation_train: Localisation | None = None
+    restart: str = "filter"
 
     def to_json(self) -> dict[str, Any]:
         """``diagnosis.json``: strict JSON values (:func:`~jaxheli._json.json_ready`), ``gap_after`` holding the
@@ -265,6 +268,7 @@ class Diagnosis:
             "flights": {role: f.to_json() for role, f in self.flights.items()},
             "outputs": list(self.outputs),
             "segment_s": self.segment_s,
+            "restart": self.restart,
             "consistency": list(self.consistency),
             "localisation": {**self.localisation.to_json(), **train},
             **self.attribution.to_json(),
@@ -279,6 +283,6 @@ class Diagnosis:
         return _read(cls, data, flights={role: FlightSummary.from_json(f) for role, f in data["flights"].items()},
                      localisation=Localisation.from_json(local),
                      localisation_train=_maybe(Localisation.from_json, local.get("train")),
-                     attribution=Attribution.from_json(data),
+                     attribution=Attribution.from_json(data), restart=data.get("restart", "filter"),
                      gap_before=Gap.from_json(data["gap_before"]), gap_best=Gap.from_json(after["best"]),
                      gap_combination=_maybe(Gap.from_json, after["combination"]))
