@@ -62,7 +62,7 @@ def run_pair(name: str, train: jaxheli.FlightData, validate: jaxheli.FlightData,
     jaxheli.save_npz(validate, folder / "validate.npz")
     result = jaxheli.identify(train, method="pem", validate=validate, progress=True)
     save_result(result, folder / "pem", train, validate)
-    diagnosis = diagnose(result.params, train, validate, segment=2.0)
+    diagnosis = diagnose(result.params, train, validate)
     write_diagnosis(diagnosis, result.params, validate, folder / "diagnosis")
     pearson = ", ".join(f"{c} {v:.3f}" for c, v in result.validate["pearson"].items())
     return [f"### {name}: train {train.source} ({train.duration:.1f} s), validate {validate.source} "

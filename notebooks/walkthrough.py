@@ -248,7 +248,8 @@ display(Image(filename=str(OUT / best / "verification_validate.png")))
 # effect inside its physical box), and ranks them by how far they shrink the gap on the *validation* flight
 # beyond the model re-fitted alone: extra parameters earn nothing unless they predict new data, and no effect
 # is paid for the identification's own under-fitting (the first line of the verdict would say so). Each
-# prediction restarts every 2 s from the state a Kalman filter estimates from the sensors.
+# prediction restarts every 6 s from the state the sensors give: a Kalman filter's estimate from the readings
+# before the restart, re-estimated by least squares from the segment's own readings.
 #
 # The output-error fit of IWO + polish absorbs most of the servo limit into a lower longitudinal control power
 # (which is why it validates so well). The PEM model, fitted to short predictions, compensates less, so the
@@ -256,8 +257,8 @@ display(Image(filename=str(OUT / best / "verification_validate.png")))
 
 # %%
 theta = results["pem"].params
-diagnosis = diagnose(theta, train, validate, effects=("input_delay", "control_saturation"),
-                     segment=2.0, top=2, max_steps=15, localise_train=False)
+diagnosis = diagnose(theta, train, validate, effects=("input_delay", "control_saturation"), top=2, max_steps=15,
+                     localise_train=False)
 print("largest gap:", diagnosis.localisation.summary.to_json())
 print("\n".join(ranking_table(diagnosis)))
 print("verdict:", diagnosis.attribution.verdict)

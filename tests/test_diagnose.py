@@ -27,7 +27,7 @@ from test_progress import SILENCE_S, STAMP, console_run
 
 OUT = DEFAULT_OUTPUTS
 DT = 0.05
-OPTIONS = {"segment": 2.0, "max_steps": 15, "top": 1, "localise_train": False}
+OPTIONS = {"max_steps": 15, "top": 1, "localise_train": False}
 """Flight shapes, candidates and steps of tests/test_effects.py and tests/test_blind.py, so the vmapped fit
 compiles once per session; ``top=1`` skips the joint fit (a second compile)."""
 DELAY = 0.08
@@ -95,7 +95,9 @@ def test_injected_delay_is_diagnosed_and_reported(delayed):
 def test_gaps_recomputed_independently(delayed):
     train, validate, d, *_ = delayed
     top = d["ranking"][0]
-    reference = reference_prediction(TABLE2, validate, segment=2.0, track=d["track"])  # base model, numpy predictor
+    restarts = {"segment": d["segment_s"], "track": d["track"], "smooth": d["restart"] == "segment"}
+    assert restarts["smooth"]  # the default: every restart re-estimated from its segment's readings
+    reference = reference_prediction(TABLE2, validate, **restarts)  # base model, numpy predictor
     base = np.asarray(nmse(reference, validate.outputs))
     np.testing.assert_allclose([d["gap_before"]["channel"][c] for c in OUT], base, rtol=1e-6)
     np.testing.assert_allclose([d["localisation"]["channel"][c]["nmse"] for c in OUT], base, rtol=1e-6)
@@ -106,11 +108,11 @@ def test_gaps_recomputed_independently(delayed):
         before, after = d["gap_before"]["channel"][c], d["gap_after"]["best"]["channel"][c]
         np.testing.assert_allclose(100 * (before - after) / before, top["shrink_by_channel"][c], rtol=1e-6, atol=1e-6)
     entry = Diagnosis.from_json(d).attribution.ranking[0]
-    y = predictions(TABLE2, make_predictor(validate, segment=2.0, track=d["track"]), [entry])
+    y = predictions(TABLE2, make_predictor(validate, **restarts), [entry])
     np.testing.assert_allclose(y[0], reference, atol=1e-7 * np.abs(reference).max())
     truth = augmented.no_effect(OUT)
     truth[augmented.layout(OUT)["delay"].start + 1] = DELAY
-    oracle = make_predictor(validate, segment=2.0, track=d["track"])(jnp.asarray(TABLE2), jnp.asarray(truth))
+    oracle = make_predictor(validate, **restarts)(jnp.asarray(TABLE2), jnp.asarray(truth))
     worst = np.max(np.abs(y[1] - np.asarray(oracle)), axis=0) / np.abs(validate.outputs).max(axis=0)
     assert np.all(worst < 0.05), dict(zip(OUT, worst))
     assert d["gap_after"]["best"]["total"] < 1.1 * float(np.mean(nmse(oracle, validate.outputs)))
@@ -165,7 +167,7 @@ def test_joint_reidentification_finds_the_delay_and_credits_it_beyond_the_refitt
     theta = np.array([refit["theta"][n] for n in PARAM_NAMES])
     track = d["track"] * np.exp(-abs(refit["nuisance"]["state_noise_cut"]))  # the reference re-tunes the filter
     assert set(refit["nuisance"]) == set(top["nuisance"]) == {"state_noise_cut"}
-    reference = reference_prediction(theta, validate, segment=2.0, track=track)
+    reference = reference_prediction(theta, validate, segment=d["segment_s"], track=track, smooth=True)
     np.testing.assert_allclose(np.mean(nmse(reference, validate.outputs)), refit["gap"], rtol=1e-6)
     np.testing.assert_allclose(top["gap_base"], min(refit["gap"], refit["gap_base"]), rtol=1e-9)  # the yardstick
     np.testing.assert_allclose(d["gap_before"]["total"], refit["gap_base"], rtol=1e-9)
@@ -254,17 +256,18 @@ def test_the_command_line_reports_every_stage_and_quiet_only_the_result(delayed,
     assert not any(t.name == "jaxheli-progress" for t in threading.enumerate())
 
 
-def test_segment_restarts_reach_every_gap_and_the_record(delayed, tmp_path):
-    """``--restart segment``: the base model's gaps are those of the numpy predictor whose every restart is
-    re-estimated from its segment's readings (tests/filtered_restart.py), the plots use it, and the record says so."""
-    _, validate, filtered, *_, argv, _ = delayed
-    out, _, _ = console_run([*argv, "--effects", "input_delay", "--restart", "segment", "--out", str(tmp_path)])
-    assert "restart segment" in out
+def test_filter_restarts_reach_every_gap_and_the_record(delayed, tmp_path):
+    """``--restart filter --segment 2`` (the restart before the segment's own readings re-estimated it): the base
+    model's gaps are those of the numpy predictor restarting from the Kalman filter of the past readings
+    (tests/filtered_restart.py), the plots use it, and the record says so."""
+    _, validate, default, *_, argv, _ = delayed
+    out, _, _ = console_run([*argv, "--effects", "input_delay", "--restart", "filter", "--segment", "2",
+                             "--out", str(tmp_path)])
+    assert "segment 2 s, restart filter" in out
     d = json.loads((tmp_path / "diagnosis.json").read_text())
-    assert d["restart"] == "segment" and d["localisation"]["simulation"]["restart"] == "segment"
+    assert d["restart"] == "filter" and d["localisation"]["simulation"]["restart"] == "filter"
     assert Diagnosis.from_json(d).to_json() == d
-    assert filtered["restart"] == "filter"
-    reference = reference_prediction(TABLE2, validate, segment=2.0, track=d["track"], smooth=True)
+    assert default["restart"] == "segment" and d["segment_s"] == 2.0 != default["segment_s"]
+    reference = reference_prediction(TABLE2, validate, segment=2.0, track=d["track"])
     np.testing.assert_allclose([d["gap_before"]["channel"][c] for c in OUT], nmse(reference, validate.outputs),
                                rtol=1e-6)
-    assert not np.allclose(d["gap_before"]["total"], filtered["gap_before"]["total"], rtol=1e-3)

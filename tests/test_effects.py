@@ -68,6 +68,9 @@ def test_smoothed_restarts_match_numpy_least_squares_per_segment():
     filtered = reference_prediction(TABLE2, flight, segment=2.0, track=0.1)
     energy = lambda y: np.sum((y - flight.outputs) ** 2, axis=0)
     assert np.all(energy(got) < energy(filtered))
+    with pytest.raises(ValueError, match=r"segment 20 s must span 2 samples to the record length \(381 samples of "
+                                         r"0.05 s\): choose a shorter one \(--segment\)"):
+        make_predictor(flight, segment=20.0, smooth=True)
 
 
 def test_restart_filter_trusts_the_true_model_and_follows_the_sensors_through_gusts():

@@ -340,7 +340,7 @@ def test_identify_and_diagnose_commands_take_a_ulog_like_a_px4log(truth, truth_l
     np.testing.assert_allclose(saved.outputs, truth.select(saved.output_names).outputs, atol=1e-5)
     assert main(["diagnose", "--model", str(tmp_path / "ulg" / "result.json"), "--train", str(truth_log),
                  "--validate", str(truth_log), "--effects", "output_bias_drift", "--max-steps", "3", "--top", "1",
-                 "--frozen-base", "--out", str(tmp_path / "diagnose")]) == 0
+                 "--segment", "2", "--frozen-base", "--out", str(tmp_path / "diagnose")]) == 0
     diagnosis = json.loads((tmp_path / "diagnose" / "diagnosis.json").read_text())
     assert diagnosis["outputs"] == list(ALL_OUTPUTS)
     assert [e["effect"] for e in diagnosis["ranking"]] == ["output_bias_drift"]

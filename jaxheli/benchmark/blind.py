@@ -48,7 +48,7 @@ from ..synth.excitation import Excitation
 from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
 from ..gap.final_fit import final_fit
 from ..gap.fit_effect import MAX_STEPS
-from ..gap.predictor import RESTARTS
+from ..gap.predictor import RESTART, RESTARTS, SEGMENT
 from ..gap.records import Entry, Final, Refit, Structure
 from ..gap.ranking import predictor_pair, staged, structure_leads
 from ..gap.reference import theta_box
@@ -243,8 +243,8 @@ def trial_flights(
 
 def run_trial(
     kind: str, seed: int, *, base: str = "pem", truth: str = "library", duration: float = 30.0, dt: float = 0.05,
-    segment: float = 2.0, max_steps: int = MAX_STEPS, pem_steps: int = 100, iterations: int = 1000,
-    min_shrink: float = MIN_SHRINK, box: str = "hull", restart: str = "filter",
+    segment: float = SEGMENT, max_steps: int = MAX_STEPS, pem_steps: int = 100, iterations: int = 1000,
+    min_shrink: float = MIN_SHRINK, box: str = "hull", restart: str = RESTART,
 ) -> dict[str, Any]:
     """One blind trial: scenario and injection of ``seed``, flights, base model identified on the training
     flight by ``base`` (:func:`base_model`), joint diagnosis and oracle; the record (verdict, attribution, shrinks,
@@ -256,7 +256,8 @@ def run_trial(
     ``oracle_magnitude_error``). The base model is identified, and the diagnosis starts, in ``box``
     (:data:`BOXES`); the base model's structure is its first hypothesis (:func:`~jaxheli.gap.ranking.staged`).
     Every prediction restarts every ``segment`` s from the filter's state (``restart="filter"``) or from that
-    state re-estimated by the segment's own readings (``"segment"``, :func:`~jaxheli.gap.predictor.restart_correction`)."""
+    state re-estimated by the segment's own readings (``"segment"``, :func:`~jaxheli.gap.predictor.restart_correction`;
+    the defaults: the diagnosis's, :data:`~jaxheli.gap.predictor.RESTART` and :data:`~jaxheli.gap.predictor.SEGMENT`)."""
     if box not in BOXES:
         raise ValueError(f"blind trial: unknown box {box!r}; boxes are {tuple(BOXES)}")
     if restart not in RESTARTS:

@@ -14,7 +14,7 @@ from ..gap.compare import localise_model, write_localisation
 from ..gap.consistency import MAX_TRAVEL_M, check, write_check
 from ..gap.diagnose import diagnose, ranking_table, write_diagnosis
 from ..gap.fit_effect import MAX_STEPS
-from ..gap.predictor import RESTARTS
+from ..gap.predictor import RESTART, RESTARTS, SEGMENT
 from ..gap.significance import MIN_SHRINK
 from ..gap.prepare import prepare
 from ..model import G_SI
@@ -51,10 +51,10 @@ def add_localise_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
 
 
 def _add_restart_option(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--restart", choices=RESTARTS, default="filter",
+    p.add_argument("--restart", choices=RESTARTS, default=RESTART,
                    help="each prediction restarts from the Kalman filter's state of the readings before it "
                         "(filter) or from that state re-estimated by least squares on the segment's own readings "
-                        "(segment; default filter)")
+                        "(segment; default %(default)s: thresholds.json)")
 
 
 def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -68,7 +68,8 @@ def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     p.add_argument("--outputs", default=None, help="comma-separated channels (default: those both flights share)")
     p.add_argument("--effects", default=",".join(fx.ALL),
                    help=f"comma-separated candidates (default: {','.join(fx.ALL)})")
-    p.add_argument("--segment", type=float, default=2.0, help="restart interval of the predictions, s (default 2)")
+    p.add_argument("--segment", type=float, default=SEGMENT,
+                   help="restart interval of the predictions, s (default %(default)g: thresholds.json)")
     _add_restart_option(p)
     p.add_argument("--track", type=float, default=None,
                    help="restart filter's process noise per sample, in measurement-noise stds (default: the level "
@@ -120,8 +121,8 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                    help="box the base model is identified and diagnosed in: the hull of both truth classes, or "
                         "the command line's default (the authors' TREX box, which the R-50 truths leave; default "
                         "hull)")
-    p.add_argument("--segment", type=float, default=2.0,
-                   help="restart interval of the diagnosis's predictions, s (default 2)")
+    p.add_argument("--segment", type=float, default=SEGMENT,
+                   help="restart interval of the diagnosis's predictions, s (default %(default)g: thresholds.json)")
     _add_restart_option(p)
     p.add_argument("--duration", type=float, default=30.0, help="flight length, s (default 30)")
     p.add_argument("--dt", type=float, default=0.05, help="sample time, s (default 0.05)")

@@ -36,7 +36,7 @@ from .consistency import check
 from .compare import frequency_comparison, localise_prediction
 from .localisation_record import Localisation
 from .fit_effect import MAX_STEPS, effect_eta as effect_eta
-from .predictor import RESTARTS, Predictor, make_predictor
+from .predictor import RESTART, RESTARTS, SEGMENT, Predictor, make_predictor
 from .ranking import diagnose_effects, predictor_pair
 from .records import Diagnosis, Entry, FlightSummary, Gap
 from .significance import MIN_SHRINK
@@ -82,8 +82,8 @@ def diagnose(
     *,
     outputs: Sequence[str] | None = None,
     effects: Sequence[str] = fx.ALL,
-    segment: float = 2.0,
-    restart: str = "filter",
+    segment: float = SEGMENT,
+    restart: str = RESTART,
     top: int = 3,
     g: float = G_SI,
     localise_train: bool = True,

@@ -27,6 +27,7 @@ from ..problem import Problem
 from ..model import FLAPPING, G_SI, N_STATES, output_indices
 from ..effects.plant import GUST_STATES, make_plant, no_effect
 from .kalman import gust_filter
+from .thresholds import THRESHOLDS
 
 
 class Predictor(eqx.Module):
@@ -127,6 +128,17 @@ RESTARTS: tuple[str, ...] = ("filter", "segment")
 or from that state re-estimated by least squares on the segment's own readings too (``segment``: ``smooth``,
 :func:`restart_correction`)."""
 
+RESTART = THRESHOLDS.restart
+"""The diagnosis's restart (:data:`RESTARTS`; from the thresholds file, :mod:`jaxheli.gap.thresholds`): restarts from
+a filter of the past alone leave errors that grow along each segment of the unstable hover model, and the re-fit of the
+base bends its dynamics to shrink them (``benchmarks/yardstick_bias.py``); re-estimated from the segment, the re-fit
+stays at the truth."""
+
+SEGMENT = THRESHOLDS.segment_s
+"""The diagnosis's restart interval (s; from the thresholds file): long enough that a segment's own initial state does
+not absorb slow effects (a bias walk, rotor droop), short enough that the unstable hover model's runs stay near the
+flight."""
+
 TRACK = 0.1
 """Default process-noise level of the restart filter, as a fraction of each channel's measurement-noise
 standard deviation per sample (:func:`jaxheli.gap.kalman.gust_filter`'s ``track``)."""
@@ -168,7 +180,8 @@ def make_predictor(
         raise ValueError(f"{source}: output channels {bad} are stick multiples, not states; drop them")
     seg = int(round(segment / dt))
     if seg < 2 or seg >= n:
-        raise ValueError(f"{source}: segment {segment} s must span 2 samples to the record length")
+        raise ValueError(f"{source}: segment {segment:g} s must span 2 samples to the record length "
+                         f"({n} samples of {dt:g} s): choose a shorter one (--segment)")
     if not track >= 0:
         raise ValueError(f"{source}: restart filter track {track} must be >= 0")
     win = int(round(window / dt))

@@ -45,7 +45,8 @@ class Protocol:
 @dataclasses.dataclass(frozen=True)
 class Thresholds:
     """The diagnosis's significance rules (see :mod:`jaxheli.gap.significance` and :mod:`jaxheli.gap.reference`
-    for what each does) and the blind check's :class:`Protocol`; ``source`` is the file they came from."""
+    for what each does), its predictions' default restart and segment (:mod:`jaxheli.gap.predictor`) and the blind
+    check's :class:`Protocol`; ``source`` is the file they came from."""
 
     min_shrink: float
     min_z: float
@@ -56,8 +57,14 @@ class Thresholds:
     settled_pct: float
     start_tie_pct: float
     left_box: float
+    restart: str
+    segment_s: float
     protocol: Protocol
     source: str
+
+
+_TYPES = {"float": float, "str": str}
+"""How each field of :class:`Thresholds` is read, by its annotation."""
 
 
 def load(path: str | Path | None = None) -> Thresholds:
@@ -66,7 +73,7 @@ def load(path: str | Path | None = None) -> Thresholds:
     path = Path(path or os.environ.get(ENV) or FILE)
     try:
         data = json.loads(path.read_text())
-        values = {f.name: float(data["thresholds"][f.name]["value"]) for f in dataclasses.fields(Thresholds)
+        values = {f.name: _TYPES[f.type](data["thresholds"][f.name]["value"]) for f in dataclasses.fields(Thresholds)
                   if f.name not in ("protocol", "source")}
         p = data["protocol"]
         protocol = Protocol(tuple(p["design_seeds"]), tuple(p["calibration_seeds"]), int(p["test_seeds_from"]))
