@@ -323,7 +323,9 @@ def test_identify_and_diagnose_commands_take_a_ulog_like_a_px4log(truth, truth_l
     """The ``jaxheli identify`` command line that runs on a real .px4log runs unchanged on a .ulg (written by the
     test), and ``jaxheli diagnose`` takes the .ulg and the result. (That px4log's u and v are all zero;
     tests/test_diagnose.py checks that ``diagnose`` leaves such channels out. The .ulg reader's records equal
-    the flight written, as the tests above check, so an NPZ copy would give the same numbers.)"""
+    the flight written, as the tests above check, so an NPZ copy would give the same numbers. The 4-s record takes
+    2-s segments, and the filter restart: the reader path is the same, its predictor compiles in a third of the
+    time.)"""
     from jaxheli.cli import main
 
     def identify(path, out):
@@ -340,7 +342,7 @@ def test_identify_and_diagnose_commands_take_a_ulog_like_a_px4log(truth, truth_l
     np.testing.assert_allclose(saved.outputs, truth.select(saved.output_names).outputs, atol=1e-5)
     assert main(["diagnose", "--model", str(tmp_path / "ulg" / "result.json"), "--train", str(truth_log),
                  "--validate", str(truth_log), "--effects", "output_bias_drift", "--max-steps", "3", "--top", "1",
-                 "--segment", "2", "--frozen-base", "--out", str(tmp_path / "diagnose")]) == 0
+                 "--restart", "filter", "--segment", "2", "--frozen-base", "--out", str(tmp_path / "diagnose")]) == 0
     diagnosis = json.loads((tmp_path / "diagnose" / "diagnosis.json").read_text())
     assert diagnosis["outputs"] == list(ALL_OUTPUTS)
     assert [e["effect"] for e in diagnosis["ranking"]] == ["output_bias_drift"]
