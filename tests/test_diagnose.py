@@ -219,6 +219,8 @@ def test_shared_outputs_and_bad_channels():
     assert "v" not in shared_outputs(a, flat) and "u" in shared_outputs(a, flat)
     with pytest.raises(ValueError, match=r"validate flight\): output channel\(s\) \['v'\] are constant"):
         diagnose(TABLE2, a, flat, outputs=("u", "v"), **OPTIONS)
+    with pytest.raises(ValueError, match=r"diagnose: unknown restart 'smoothed'; restarts are \('filter', 'segment'\)"):
+        diagnose(TABLE2, a, b, restart="smoothed", **OPTIONS)
 
 
 def test_cli_writes_every_file(delayed, tmp_path):

@@ -48,7 +48,7 @@ from ..synth.excitation import Excitation
 from ..synth.piloted import DEFAULT_NOISE, DEFAULT_OUTPUTS, piloted_flight
 from ..gap.final_fit import final_fit
 from ..gap.fit_effect import MAX_STEPS
-from ..gap.predictor import RESTART, RESTARTS, SEGMENT
+from ..gap.predictor import RESTART, SEGMENT, smooths
 from ..gap.records import Entry, Final, Refit, Structure
 from ..gap.ranking import predictor_pair, staged, structure_leads
 from ..gap.reference import theta_box
@@ -257,11 +257,10 @@ def run_trial(
     (:data:`BOXES`); the base model's structure is its first hypothesis (:func:`~jaxheli.gap.ranking.staged`).
     Every prediction restarts every ``segment`` s from the filter's state (``restart="filter"``) or from that
     state re-estimated by the segment's own readings (``"segment"``, :func:`~jaxheli.gap.predictor.restart_correction`;
-    the defaults: the diagnosis's, :data:`~jaxheli.gap.predictor.RESTART` and :data:`~jaxheli.gap.predictor.SEGMENT`)."""
+    the defaults: the diagnosis's, :data:`~jaxheli.gap.predictor.RESTART`, :data:`~jaxheli.gap.predictor.SEGMENT`)."""
     if box not in BOXES:
         raise ValueError(f"blind trial: unknown box {box!r}; boxes are {tuple(BOXES)}")
-    if restart not in RESTARTS:
-        raise ValueError(f"blind trial: unknown restart {restart!r}; restarts are {RESTARTS}")
+    smooth = smooths(restart, "blind trial")
     where = scenario(seed)
     inj, train, validate, right, facts = trial_flights(truth, kind, seed, where, duration=duration, dt=dt,
                                                        outputs=DEFAULT_OUTPUTS)
@@ -273,7 +272,7 @@ def run_trial(
     with stage(f"base model by {base} on the training flight"):
         theta, ident = base_model(train, base, seed, pem_steps=pem_steps, iterations=iterations, outputs=outputs,
                                   box=box)
-    train_pred, validate_pred = predictor_pair(theta, train, validate, segment=segment, smooth=restart == "segment")
+    train_pred, validate_pred = predictor_pair(theta, train, validate, segment=segment, smooth=smooth)
     *arrays, owner = fx.tried_arrays(fx.ALL, outputs)
     oracle = _oracle_row(inj.kind, inj, *fx.candidate_arrays(fx.ALL, outputs))
     arrays = tuple(np.vstack([a, o]) for a, o in zip(arrays, oracle))

@@ -186,8 +186,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     validate = prepare(read_flight(args.validate, args), correct_data=args.correct)
     diagnosis = diagnose(
         args.model, train, validate, outputs=outputs(args.outputs), effects=chosen, segment=args.segment,
-        restart=args.restart, top=args.top, g=args.g, max_steps=args.max_steps, min_shrink=args.min_shrink, track=args.track,
-        joint=not args.frozen_base,
+        restart=args.restart, top=args.top, g=args.g, max_steps=args.max_steps, min_shrink=args.min_shrink,
+        track=args.track, joint=not args.frozen_base,
     )
     found = diagnosis.attribution
     print(f"diagnosis of {args.model}: trained on {train.source}, validated on {validate.source} "

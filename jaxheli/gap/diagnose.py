@@ -36,7 +36,7 @@ from .consistency import check
 from .compare import frequency_comparison, localise_prediction
 from .localisation_record import Localisation
 from .fit_effect import MAX_STEPS, effect_eta as effect_eta
-from .predictor import RESTART, RESTARTS, SEGMENT, Predictor, make_predictor
+from .predictor import RESTART, SEGMENT, Predictor, make_predictor, smooths
 from .ranking import diagnose_effects, predictor_pair
 from .records import Diagnosis, Entry, FlightSummary, Gap
 from .significance import MIN_SHRINK
@@ -97,12 +97,12 @@ def diagnose(
 
     Effects are fitted on ``train`` jointly with the base parameters in ``bounds`` (``joint=False``: the base
     model held fixed) and scored on ``validate`` (:func:`~jaxheli.gap.ranking.diagnose_effects`, with ``top``,
-    ``max_steps`` and ``min_shrink``); ``segment`` (s) is the restart interval of every prediction, ``restart`` where it restarts
-    (:data:`~jaxheli.gap.predictor.RESTARTS`) and ``track`` the restart filter's level (``None``: tuned on ``train``). ``outputs`` default to :func:`shared_outputs`;
-    ``localise_train`` localises the training flight's gap too.
+    ``max_steps`` and ``min_shrink``); ``segment`` (s) is the restart interval of every prediction, ``restart``
+    where it restarts (:data:`~jaxheli.gap.predictor.RESTARTS`) and ``track`` the restart filter's level (``None``:
+    tuned on ``train``). ``outputs`` default to :func:`shared_outputs`; ``localise_train`` localises the training
+    flight's gap too.
     """
-    if restart not in RESTARTS:
-        raise ValueError(f"diagnose: unknown restart {restart!r}; restarts are {RESTARTS}")
+    smooth = smooths(restart, "diagnose")
     theta = resolve_params(model)
     names = tuple(outputs) if outputs is not None else shared_outputs(train, validate)
     for role, flight in (("train", train), ("validate", validate)):
@@ -126,7 +126,7 @@ def diagnose(
     problems = [make_problem(f, outputs=names, g=g) for f in (train, validate)]
     with stage("predictors of both flights" + (", the restart filter tuned on the training flight"
                                                if track is None else "")) as now:
-        preds = predictor_pair(theta, *problems, segment=segment, g=g, track=track, smooth=restart == "segment")
+        preds = predictor_pair(theta, *problems, segment=segment, g=g, track=track, smooth=smooth)
         now.outcome = f"restart filter level {float(preds[0].track):g}"
     attribution = diagnose_effects(theta, *preds, list(effects), top=top, joint=joint, bounds=bounds,
                                    max_steps=max_steps, min_shrink=min_shrink)
@@ -195,7 +195,7 @@ def write_diagnosis(
     shown = diagnosis.attribution.shown
     with stage(f"plots in {out}"):
         pred = make_predictor(flight, segment=diagnosis.segment_s, g=g, track=diagnosis.attribution.track,
-                              smooth=diagnosis.restart == "segment")
+                              smooth=smooths(diagnosis.restart, str(out)))
         estimate, model = frequency_comparison(theta, flight, names, g)
         return [
             out / "diagnosis.json",

@@ -139,6 +139,15 @@ SEGMENT = THRESHOLDS.segment_s
 not absorb slow effects (a bias walk, rotor droop), short enough that the unstable hover model's runs stay near the
 flight."""
 
+
+def smooths(restart: str, caller: str) -> bool:
+    """Whether predictions restarting as ``restart`` (:data:`RESTARTS`) re-estimate each restart from the segment
+    (``make_predictor``'s ``smooth``); an unknown restart is an error naming ``caller``."""
+    if restart not in RESTARTS:
+        raise ValueError(f"{caller}: unknown restart {restart!r}; restarts are {RESTARTS}")
+    return restart == "segment"
+
+
 TRACK = 0.1
 """Default process-noise level of the restart filter, as a fraction of each channel's measurement-noise
 standard deviation per sample (:func:`jaxheli.gap.kalman.gust_filter`'s ``track``)."""
