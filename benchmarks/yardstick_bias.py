@@ -10,7 +10,8 @@ can fit and the held-out gap stays the truth's. Printed per seed: the training R
 the validation gap (channel-mean nmse of :func:`jaxheli.gap.fit_effect.score`) of both, and how far the re-fit moved
 (Euclidean norm of the parameter change over the box widths). The truth is handed in: a probe of the objective,
 not a score of the diagnosis. ``--restart segment`` re-estimates every restart from the segment's own readings
-(:func:`jaxheli.gap.predictor.restart_correction`). The re-fit's rounds are reported on stderr (``--quiet``: none).
+(:func:`jaxheli.gap.segment_restart.restart_correction`). The re-fit's rounds are reported on stderr
+(``--quiet``: none).
 """
 
 import argparse

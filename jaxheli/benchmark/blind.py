@@ -256,7 +256,8 @@ def run_trial(
     ``oracle_magnitude_error``). The base model is identified, and the diagnosis starts, in ``box``
     (:data:`BOXES`); the base model's structure is its first hypothesis (:func:`~jaxheli.gap.ranking.staged`).
     Every prediction restarts every ``segment`` s from the filter's state (``restart="filter"``) or from that
-    state re-estimated by the segment's own readings (``"segment"``, :func:`~jaxheli.gap.predictor.restart_correction`;
+    state re-estimated by the segment's own readings
+    (``"segment"``, :func:`~jaxheli.gap.segment_restart.restart_correction`;
     the defaults: the diagnosis's, :data:`~jaxheli.gap.predictor.RESTART`, :data:`~jaxheli.gap.predictor.SEGMENT`)."""
     if box not in BOXES:
         raise ValueError(f"blind trial: unknown box {box!r}; boxes are {tuple(BOXES)}")

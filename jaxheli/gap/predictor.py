@@ -27,6 +27,7 @@ from ..problem import Problem
 from ..model import FLAPPING, G_SI, N_STATES, output_indices
 from ..effects.plant import GUST_STATES, make_plant, no_effect
 from .kalman import gust_filter
+from .segment_restart import restart_correction
 from .thresholds import THRESHOLDS
 
 
@@ -93,40 +94,10 @@ class Predictor(eqx.Module):
         return jnp.einsum("...nk,ns->...s", err, onehot)
 
 
-def restart_correction(
-    residual: Float[Array, "M k"], F: Float[Array, "n n"], H: Float[Array, "k n"], P: Float[Array, "n n"],
-    noise_var: Float[Array, "k"], segment: int,
-) -> Float[Array, "M k"]:
-    """Each segment's restart state re-estimated from the segment's own readings: the change of its predicted
-    output states (``residual[m]``: readings minus prediction ``m + 1`` samples after the first restart, a restart
-    every ``segment`` samples) when the restart state moves by the least-squares ``d`` of
-    ``sum_j |r_j - H F^j d|^2 / noise_var + d' P^-1 d`` (``P``: the filter's covariance of the restart state, the
-    prior; ``j = 1 .. segment`` samples after it). The free response of the linear part is exact; airframe terms
-    (drag, rotor speed) are held where the filter's restart put them. Restarts from a filter of the past alone
-    leave errors that grow along the segment, and a least-squares fit of the dynamics then bends the model to
-    shrink them (on effect-free flights of the model class it moved the parameters far from the truth); with the
-    restart estimated from the segment too, the residual is what the dynamics cannot explain. The first segment,
-    started from the first readings, gets the same prior."""
-    m, k = residual.shape
-    count = -(-m // segment)
-
-    def power(Fj, _):
-        Fj = F @ Fj
-        return Fj, H @ Fj
-
-    _, phi = jax.lax.scan(power, jnp.eye(F.shape[0], dtype=F.dtype), None, length=segment)
-    w = 1.0 / noise_var
-    seen = (jnp.arange(count * segment) < m).reshape(count, segment).astype(residual.dtype)
-    info = jnp.einsum("sj,jka,k,jkb->sab", seen, phi, w, phi) + jnp.linalg.inv(P)[None]
-    r = jnp.zeros((count * segment, k), residual.dtype).at[:m].set(residual).reshape(count, segment, k)
-    d = jnp.linalg.solve(info, jnp.einsum("jka,k,sjk->sa", phi, w, r)[..., None])[..., 0]
-    return jnp.einsum("jka,sa->sjk", phi, d).reshape(count * segment, k)[:m]
-
-
 RESTARTS: tuple[str, ...] = ("filter", "segment")
 """Where every prediction restarts: from the Kalman filter's state of the readings before the restart (``filter``),
 or from that state re-estimated by least squares on the segment's own readings too (``segment``: ``smooth``,
-:func:`restart_correction`)."""
+:func:`~jaxheli.gap.segment_restart.restart_correction`)."""
 
 RESTART = THRESHOLDS.restart
 """The diagnosis's restart (:data:`RESTARTS`; from the thresholds file, :mod:`jaxheli.gap.thresholds`): restarts from
@@ -174,8 +145,8 @@ def make_predictor(
 ) -> Predictor:
     """Predictor of a record restarting every ``segment`` s from the filtered state (process noise ``track``,
     see :data:`TRACK`; ``smooth``: each restart then re-estimated from its segment's readings too,
-    :func:`restart_correction`); delays up to ``max_delay`` s; residual energy in windows of ``window`` s
-    (:meth:`Predictor.segment_energy`). ``data`` is a flight (all its output channels, gravity ``g``) or a
+    :func:`~jaxheli.gap.segment_restart.restart_correction`); delays up to ``max_delay`` s; residual energy in
+    windows of ``window`` s (:meth:`Predictor.segment_energy`). ``data`` is a flight (all its output channels, gravity ``g``) or a
     :class:`~jaxheli.problem.Problem` (its scored channels and its ``g``)."""
     if isinstance(data, Problem):
         source, names, dt, g = str(data.source), data.outputs, data.dt, data.settings.g

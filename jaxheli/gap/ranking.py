@@ -357,7 +357,8 @@ def predictor_pair(
     """The predictors of the training and validation records (flights or problems), built once each
     (predictors are taken as they are): restarts every ``segment`` s, the restart filter at ``track`` (``None``: the level
     :func:`~jaxheli.gap.predictor.tune_track` picks for ``theta`` on ``train``), each restart re-estimated from its
-    segment's readings with ``smooth`` (:func:`~jaxheli.gap.predictor.restart_correction`)."""
+    segment's readings with ``smooth``
+    (:func:`~jaxheli.gap.segment_restart.restart_correction`)."""
     if isinstance(train, Predictor) and isinstance(validate, Predictor):
         return train, validate
     names = [x.outputs if isinstance(x, Problem) else x.output_names for x in (train, validate)]
