@@ -5,8 +5,10 @@ import shutil
 import tempfile
 
 # The suite's time goes mostly to compiling many small programs: a lower LLVM optimisation level compiles
-# them about 1.4x faster (tests/test_px4log_cli.py: 137 s -> 95 s) and leaves the arithmetic unchanged.
-_FLAGS = ["--xla_backend_optimization_level=0"]
+# them about 1.4x faster (tests/test_px4log_cli.py: 137 s -> 95 s) and leaves the arithmetic unchanged, and XLA
+# CPU's older loop emitters (the library's QUICK_COMPILE for its few-run programs, jaxheli/_xla.py) compile faster
+# again (tests/test_identify.py and tests/test_shooting.py: 264 s -> 207 s, one process, measured side by side).
+_FLAGS = ["--xla_backend_optimization_level=0", "--xla_cpu_use_fusion_emitters=false"]
 if os.environ.get("PYTEST_XDIST_WORKER"):
     # One busy thread per xdist worker: with `-n 2` on two cores, a worker that also spreads its XLA ops over
     # both cores only slows the other one down (the walkthrough notebook's kernel gets the same setting).

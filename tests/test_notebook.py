@@ -25,14 +25,16 @@ NOTEBOOK = Path(__file__).resolve().parents[1] / "notebooks" / "walkthrough.py"
 CELL_TIMEOUT_S = 400
 """Longest a single cell may run (the identification cell is the longest)."""
 KERNEL_ENV = {
-    "XLA_FLAGS": "--xla_backend_optimization_level=0 --xla_cpu_multi_thread_eigen=false",
+    "XLA_FLAGS": "--xla_backend_optimization_level=0 --xla_cpu_use_fusion_emitters=false "
+                 "--xla_cpu_multi_thread_eigen=false",
     "OMP_NUM_THREADS": "1",
     "OPENBLAS_NUM_THREADS": "1",
     "JUPYTER_PLATFORM_DIRS": "1",
 }
-"""Kernel settings for 2-core CI machines: a lower LLVM optimisation level, which halves the JAX compile
-time that dominates these small runs, and one busy thread, so that the kernel and the other xdist worker
-each keep a core instead of contending for both."""
+"""Kernel settings for 2-core CI machines: the suite's compile settings (tests/conftest.py: a lower LLVM
+optimisation level and the older loop emitters), which halve the JAX compile time that dominates these small
+runs, and one busy thread, so that the kernel and the other xdist worker each keep a core instead of contending
+for both."""
 
 
 @pytest.fixture(scope="module")
