@@ -28,7 +28,9 @@ def test_default_and_named_folder(monkeypatch: pytest.MonkeyPatch, tmp_path: Pat
 
 
 def test_command_writes_programs(tmp_path: Path) -> None:
-    env = {k: v for k, v in os.environ.items() if k != "JAX_COMPILATION_CACHE_DIR"}
+    """As a user runs it: without the suite's cache folder and its quick-compile XLA flags (tests/conftest.py), under
+    which every program of this command compiles faster than :data:`~jaxheli._compile_cache.MIN_COMPILE_S`."""
+    env = {k: v for k, v in os.environ.items() if k not in ("JAX_COMPILATION_CACHE_DIR", "XLA_FLAGS")}
     env.update({ENV: str(tmp_path / "xla"), "PYTHONPATH": str(ROOT)})
     run = subprocess.run([sys.executable, "-m", "jaxheli", "synth", "--out", str(tmp_path / "f.npz"),
                           "--duration", "40"], env=env, capture_output=True, text=True, timeout=300)
