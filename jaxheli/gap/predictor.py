@@ -146,8 +146,8 @@ def make_predictor(
     """Predictor of a record restarting every ``segment`` s from the filtered state (process noise ``track``,
     see :data:`TRACK`; ``smooth``: each restart then re-estimated from its segment's readings too,
     :func:`~jaxheli.gap.segment_restart.restart_correction`); delays up to ``max_delay`` s; residual energy in
-    windows of ``window`` s (:meth:`Predictor.segment_energy`). ``data`` is a flight (all its output channels, gravity ``g``) or a
-    :class:`~jaxheli.problem.Problem` (its scored channels and its ``g``)."""
+    windows of ``window`` s (:meth:`Predictor.segment_energy`). ``data`` is a flight (all its output channels,
+    gravity ``g``) or a :class:`~jaxheli.problem.Problem` (its scored channels and its ``g``)."""
     if isinstance(data, Problem):
         source, names, dt, g = str(data.source), data.outputs, data.dt, data.settings.g
         inputs, outputs, time = (np.asarray(v) for v in (data.sim.inputs, data.target, data.time))
