@@ -10,8 +10,9 @@ from __future__ import annotations
 
 from typing import Literal
 
-import equinox as eqx
+import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ._types import Array, ArrayLike, Bool, Float
 
@@ -31,6 +32,17 @@ def _pair(sim: ArrayLike, meas: ArrayLike) -> tuple[Array, Array]:
     return sim, jnp.broadcast_to(meas, sim.shape)
 
 
+def require_varying(meas: ArrayLike) -> None:
+    """Raise where a measured channel (last axis) is constant: it has no correlation. Checked on the host, for a
+    concrete ``meas``; a traced one is the target of a :class:`~jaxheli.problem.Problem`, whose constructor checks
+    it (a check inside the compiled program would be a host callback, and XLA's persistent cache does not store a
+    program that holds one)."""
+    if not isinstance(meas, jax.core.Tracer):
+        values = np.asarray(meas)
+        if np.any(np.ptp(values.reshape(-1, values.shape[-1]), axis=0) <= 0):
+            raise ValueError("pearson: a measured channel is constant")
+
+
 def _bad_channels(sim: Array) -> Bool[Array, "*batch k"]:
     """Channels with any non-finite sample, or flat to within rounding."""
     finite = jnp.all(jnp.isfinite(sim), axis=-2)
@@ -46,15 +58,16 @@ def _bad_channels(sim: Array) -> Bool[Array, "*batch k"]:
 def pearson(sim: ArrayLike, meas: ArrayLike) -> Float[Array, "*batch k"]:
     """Pearson correlation per channel (paper Eq. 6); worst (-1) for non-finite or flat simulations.
 
-    A constant measured channel has no correlation and raises (inside jit too).
+    A constant measured channel has no correlation and raises (:func:`require_varying`).
     """
-    sim, meas = _pair(sim, meas)
+    pair = _pair(sim, meas)
+    require_varying(meas)
+    sim, meas = pair
     bad = _bad_channels(sim)
     s = jnp.where(bad[..., None, :], 0.0, sim)
     sc = s - jnp.mean(s, axis=-2, keepdims=True)
     mc = meas - jnp.mean(meas, axis=-2, keepdims=True)
     m_spread = jnp.sum(mc**2, axis=-2)
-    m_spread = eqx.error_if(m_spread, m_spread <= 0, "pearson: a measured channel is constant")
     return pearson_from_sums(jnp.sum(sc * mc, axis=-2), jnp.sum(sc**2, axis=-2), m_spread, bad)
 
 

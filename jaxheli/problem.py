@@ -165,10 +165,6 @@ class Problem(eqx.Module):
         """The same record simulated from the initial state ``x0[13]`` (its restarts unchanged)."""
         return dataclasses.replace(self, sim=self.sim.replace_x0(x0))
 
-    def constant_channels(self) -> list[str]:
-        """Scored channels whose measurement never changes (no scale, no correlation)."""
-        return [c for c, s in zip(self.outputs, np.asarray(self.scale)) if not s > 0]
-
     def population_cost(self) -> PopulationCost:
         """``thetas[P, 40] -> cost[P]``, the settings' search cost in their precision (one jitted call)."""
         return PopulationCost(self.sim, self.target, self.settings.precision, self.settings.cost)
@@ -179,13 +175,17 @@ class Problem(eqx.Module):
 
 
 def make_problem(flight: FlightData, settings: Settings | None = None, **changes: Any) -> Problem:
-    """The :class:`Problem` of ``flight`` under ``settings`` (default :class:`Settings`) with ``changes``."""
+    """The :class:`Problem` of ``flight`` under ``settings`` (default :class:`Settings`) with ``changes``; a scored
+    channel whose measurement never changes (no scale, no correlation) is an error naming it."""
     settings = (settings or Settings()).replace(**changes)
     names = default_outputs(flight) if settings.outputs is None else settings.outputs
     settings = settings.replace(outputs=names)
     sim = make_simulator(flight, outputs=names, g=settings.g, hold=settings.hold, x0=settings.x0,
                          segment=settings.segment, method=settings.simulator)
     target = flight.select(names).outputs
+    flat = [c for c, spread in zip(names, np.ptp(target, axis=0)) if not spread > 0]
+    if flat:
+        raise ValueError(f"{flight.source}: measured channel(s) {flat} are constant; drop them from outputs")
     return Problem(sim, jnp.asarray(target), jnp.asarray(target.std(axis=0)), jnp.asarray(flight.time - flight.time[0]),
                    settings.bounds, settings, Source(flight.source))
 
@@ -233,10 +233,6 @@ class Records(eqx.Module):
     def variant(self, **changes: Any) -> Records:
         """Every record under changed settings (:meth:`Problem.variant`)."""
         return Records(tuple(p.variant(**changes) for p in self.parts))
-
-    def constant_channels(self) -> list[str]:
-        """Scored channels constant in some record."""
-        return sorted({c for p in self.parts for c in p.constant_channels()}, key=self.outputs.index)
 
     def population_cost(self) -> SummedCost:
         """``thetas[P, 40] -> cost[P]``: the sum of the records' search costs."""

@@ -36,6 +36,7 @@ import numpy as np
 from .._types import Array, Float
 from ..model import build_ab, output_indices
 from .discretize import Discrete, discretize
+from .recursion import linear_recursion
 
 Simulator = Any
 """A :class:`jaxheli.sim.simulate.Simulator` (which calls this module; not imported here, so no import cycle)."""
@@ -75,12 +76,18 @@ def run_states(sim: Simulator, theta: Float[Array, "40"]) -> Float[Array, "K 13"
 
 def estimated_outputs(sim: Simulator, theta: Float[Array, "40"]) -> Float[Array, "N k"]:
     """``sim``'s outputs for one ``theta[40]``, every run started from its least-squares initial state."""
-    return _simulate_runs(sim, *_project(sim, theta))
+    d, x0, forced = _project(sim, theta)
+    K, L = run_shape(sim.inputs.shape[0], sim.segment_samples)
+    idx = tuple(int(i) for i in output_indices(sim.outputs))
+    none = jnp.zeros((L, K, 0), d.Ad.dtype)
+    free = linear_recursion(d.Ad.T, jnp.zeros((0, d.Ad.shape[0]), d.Ad.dtype), none, x0, False, idx)
+    return _by_sample(forced + free, x0[0, np.array(idx)], sim.inputs.shape[0])
 
 
-def _project(sim: Simulator, theta: Float[Array, "40"]) -> tuple[Discrete, Float[Array, "K 13"]]:
-    """The discrete model and each run's least-squares initial state: the runs from rest, the right-hand sides
-    by one backward (adjoint) pass over their weighted errors, the Gram matrices by :func:`_power_sums`."""
+def _project(sim: Simulator, theta: Float[Array, "40"]) -> tuple[Discrete, Float[Array, "K 13"], Array]:
+    """The discrete model, each run's least-squares initial state and the runs' outputs from rest (``[L, K, k]``,
+    by step): the runs from rest, the right-hand sides by one backward (adjoint) pass over their weighted errors,
+    the Gram matrices by :func:`_power_sums`."""
     idx = output_indices(sim.outputs)
     measured = sim.measured_states[:, idx]
     std = jnp.std(measured, axis=0)
@@ -90,38 +97,30 @@ def _project(sim: Simulator, theta: Float[Array, "40"]) -> tuple[Discrete, Float
     d = discretize(*build_ab(theta, sim.g), sim.dt, sim.hold)
     n, n_x = measured.shape[0], d.Ad.shape[0]
     K, L = run_shape(n, sim.segment_samples)
-    forced = _simulate_runs(sim, d, jnp.zeros((K, n_x), d.Ad.dtype))
+    u = jnp.pad(sim.inputs.astype(d.Ad.dtype), ((0, K * L + 1 - n), (0, 0)))
+    sticks = jnp.concatenate([_by_step(u[:-1], K, L), _by_step(u[1:], K, L)], axis=-1)  # [L, K, 2m]
+    rest = jnp.zeros((K, n_x), d.Ad.dtype)
+    keep = tuple(int(i) for i in idx)
+    forced = linear_recursion(d.Ad.T, jnp.concatenate([d.B0.T, d.B1.T]), sticks, rest, False, keep)  # [L, K, k]
     C = jnp.eye(n_x, dtype=d.Ad.dtype)[idx]  # [k, 13]
-    weighted = ((measured - forced) * weight[None, :]) @ C  # C' W e at every sample, [N, 13]
-
-    def adjoint(lam, c):
-        return (lam + c) @ d.Ad, None  # lam_m = Ad' (lam_{m+1} + c_m); lam_1 = sum_m (Ad^m)' c_m
-
-    lam, _ = jax.lax.scan(adjoint, jnp.zeros((K, n_x), d.Ad.dtype), _by_step(weighted[1:], K, L), reverse=True)
-    rhs = lam.at[0].add(weighted[0])  # run 0 also holds step 0
+    seen = _by_step(jnp.ones((n - 1, 1), d.Ad.dtype), K, L)  # [L, K, 1]: 0 on the padding
+    errors = (_by_step(measured[1:], K, L) - forced) * seen * weight[None, None]  # W e, [L, K, k]
+    # lam_m = Ad' (lam_{m+1} + C' W e_m), backwards; lam_1 = sum_m (C Ad^m)' W e_m
+    lam = linear_recursion(d.Ad, C @ d.Ad, errors, rest, True)[0]
+    rhs = lam.at[0].add((measured[0] * weight) @ C)  # run 0 also holds step 0 (its run from rest is 0 there)
     Q = C.T @ (weight[:, None] * C)
     full, last = _power_sums(d.Ad, Q, (L, n - 1 - (K - 1) * L))
     gram = jnp.broadcast_to(d.Ad.T @ full @ d.Ad, (K, n_x, n_x)).at[-1].set(d.Ad.T @ last @ d.Ad).at[0].add(Q)
     eye = jnp.eye(n_x, dtype=gram.dtype)
     scale = RIDGE * jnp.trace(gram, axis1=-2, axis2=-1) / n_x + jnp.finfo(gram.dtype).tiny
     x0 = jnp.linalg.solve(gram + scale[:, None, None] * eye[None], rhs[..., None])[..., 0]
-    return d, x0
+    return d, x0, forced
 
 
-def _simulate_runs(sim: Simulator, d: Discrete, x0: Float[Array, "K 13"]) -> Float[Array, "N k"]:
-    """``sim``'s outputs with run ``j`` started from ``x0[j]``: one scan over the steps of all runs at once."""
-    n = sim.inputs.shape[0]
-    K, L = run_shape(n, sim.segment_samples)
-    idx = output_indices(sim.outputs)
-    u = jnp.pad(sim.inputs.astype(d.Ad.dtype), ((0, K * L + 1 - n), (0, 0)))
-
-    def step(x, inputs):
-        u0, u1 = inputs
-        x = x @ d.Ad.T + u0 @ d.B0.T + u1 @ d.B1.T
-        return x, x[:, idx]
-
-    _, y = jax.lax.scan(step, x0, (_by_step(u[:-1], K, L), _by_step(u[1:], K, L)))  # [L, K, k]
-    return jnp.concatenate([x0[:1, idx], jnp.swapaxes(y, 0, 1).reshape(K * L, -1)[: n - 1]])
+def _by_sample(y: Float[Array, "L K k"], first: Float[Array, " k"], n: int) -> Float[Array, "N k"]:
+    """Outputs by step of each run (:func:`_by_step`'s layout) as the record's ``n`` samples, ``first`` at 0."""
+    K, L = y.shape[1], y.shape[0]
+    return jnp.concatenate([first[None], jnp.swapaxes(y, 0, 1).reshape(K * L, -1)[: n - 1]])
 
 
 def _by_step(a: Float[Array, "M c"], K: int, L: int) -> Float[Array, "L K c"]:
