@@ -9,8 +9,9 @@ recursion is the same recursion, though,
 
 so its drive is formed for every step at once, outside the loop, in one product (a Jacobian's columns, batched by
 ``vmap``, in one matrix product), and the loop advances all the tangents with the one matrix ``M``, keeping only
-the ``keep`` columns of each state. Same numbers; the forward-mode Jacobian of the output-error fit's runs is
-two to three times faster (``tests/test_recursion.py``; timings in README's benchmarks section).
+the ``keep`` columns of each state. Same numbers (``tests/test_recursion.py``). Measured (2-core CPU, 36 tangents,
+the 8,001-sample default flight): the output-error residuals' Jacobian took 158 / 188 / 181 ms over 5-s runs, 20-s runs
+and one run, against 157 / 243 / 517 ms with JAX's tangent of the scan.
 """
 
 from __future__ import annotations

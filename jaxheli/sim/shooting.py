@@ -19,9 +19,10 @@ Layout (the simulator's restarts): run 0 covers samples ``0 .. L`` (``m = 0 .. L
 samples (the whole record for one run). Channels the simulator cannot restart from (unmeasured, or the authors'
 stick-multiple flapping columns) get no weight.
 
-Cost: about three simulations per ``theta``, every run advanced by one scan over the ``L`` steps: the runs from
-rest, one backward (adjoint) pass that sums each run's right-hand side ``sum_m (C Ad^m)' W e_j[m]``, and the runs
-from their fitted states. The Gram matrices ``sum_m (C Ad^m)' W C Ad^m`` (the same for all runs but the first and
+Cost: about three simulations per ``theta``, every run advanced by one linear recursion over the ``L`` steps
+(:mod:`jaxheli.sim.recursion`, whose tangent is cheap): the runs from rest, one backward (adjoint) pass that sums each
+run's right-hand side ``sum_m (C Ad^m)' W e_j[m]``, and the free response from the fitted states, added to the runs
+from rest. The Gram matrices ``sum_m (C Ad^m)' W C Ad^m`` (the same for all runs but the first and
 the last) come from ``log2 L`` doublings of 13 x 13 matrices, never from the powers at every sample.
 """
 
