@@ -16,7 +16,9 @@ from jaxheli.gap.predictor import TRACKS, make_predictor, noise_variance, tune_t
 from jaxheli.gap.fit_effect import EffectFit
 from jaxheli.gap.ranking import explains_more, predictor_pair, rank_effects, structure_leads, verdict
 from jaxheli.gap.records import Structure
-from jaxheli.gap.significance import EFFECT_SIGMA, TIE_SIGMA, HeldOut, lr_test, shrink_entries, yardstick
+from jaxheli.gap.significance import (
+    EFFECT_SIGMA, HELD_OUT_SIGMA, MIN_Z, TIE_SIGMA, HeldOut, lr_test, paired_se, shrink_entries, yardstick,
+)
 from jaxheli.model import TABLE2
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS, piloted_flight
 from filtered_restart import reference_prediction
@@ -276,6 +278,34 @@ def test_a_shrink_from_parameters_within_noise_of_no_effect_is_not_significant()
     assert weak.shrink_pct > strong.shrink_pct > 3.0
     assert strong.significant and not weak.significant and strong.fitted.evidence_z == pytest.approx(16.0)
     assert verdict([weak, strong]).startswith("input_delay (lat input delay delay 80 +- 5 ms)")
+
+
+def test_a_held_out_shrink_of_several_standard_errors_stands_for_a_size_whose_wald_z_says_nothing():
+    """A gust std whose influence saturates (0.2 +- 0.5 m/s, z 0.4) is evidence when its held-out shrink stands
+    HELD_OUT_SIGMA paired standard errors above zero; a shrink that passes the EFFECT_SIGMA test but not that one
+    needs the Wald route (a size MIN_Z from no effect)."""
+    alternate = np.r_[1, -1, 1, -1, 1, -1, 1, -1]
+    ref = np.ones(8)
+
+    def entry(shrink: float, spread: float, z_row: list[float]):
+        gap_base = np.full(len(OUT), 0.2)
+        energy = np.stack([ref, 1.0 - shrink + spread * alternate])
+        held = HeldOut(np.stack([gap_base, gap_base * (1.0 - shrink)]), energy)
+        (e,) = shrink_entries(["process_noise"], OUT, _fit(np.array([z_row]), np.array([[0.5, 0.3, 0.1]])), held, 3.0)
+        return e
+
+    steady = entry(0.08, 0.001, [0.2, 2.0, 0.5])
+    assert steady.fitted.evidence_z == pytest.approx(0.4) and steady.fitted.evidence_z < MIN_Z
+    assert steady.shrink_pct >= HELD_OUT_SIGMA * steady.shrink_se_pct and steady.significant
+    # between the two bounds: past the effect test, short of the held-out one (se % = 100 sqrt(8) spread std / 8)
+    se = 8.0 / (0.5 * (EFFECT_SIGMA + HELD_OUT_SIGMA))
+    spread = se * 8.0 / (100.0 * np.sqrt(8.0) * np.std(alternate, ddof=1))
+    middling = entry(0.08, spread, [0.2, 2.0, 0.5])
+    assert middling.shrink_se_pct == pytest.approx(se)
+    assert middling.shrink_se_pct == pytest.approx(paired_se(ref, 1.0 - 0.08 + spread * alternate, 8.0))
+    assert EFFECT_SIGMA * middling.shrink_se_pct <= middling.shrink_pct < HELD_OUT_SIGMA * middling.shrink_se_pct
+    assert not middling.significant
+    assert entry(0.08, spread, [2.0, 2.0, 0.5]).significant  # the same shrink from a size 4 standard errors out
 
 
 def _structure(shrink: float, significant: bool = True) -> Structure:

@@ -10,7 +10,7 @@ import pytest
 from jaxheli.gap import thresholds as th
 
 PACKAGE = Path(th.__file__).resolve().parents[1]
-NAMES = ("MIN_SHRINK", "MIN_Z", "SIG_SIGMA", "EFFECT_SIGMA", "LARGE_SHRINK", "TIE_SIGMA", "SETTLED_PCT", "START_TIE_PCT", "LEFT_BOX",
+NAMES = ("MIN_SHRINK", "MIN_Z", "SIG_SIGMA", "EFFECT_SIGMA", "LARGE_SHRINK", "HELD_OUT_SIGMA", "TIE_SIGMA", "SETTLED_PCT", "START_TIE_PCT", "LEFT_BOX",
          "RESTART", "SEGMENT")
 
 

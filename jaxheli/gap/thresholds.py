@@ -53,6 +53,7 @@ class Thresholds:
     sig_sigma: float
     effect_sigma: float
     large_shrink: float
+    held_out_sigma: float
     tie_sigma: float
     settled_pct: float
     start_tie_pct: float
