@@ -262,7 +262,8 @@ def test_fits_on_the_physical_bound_are_never_significant():
 
 
 def test_a_shrink_from_parameters_within_noise_of_no_effect_is_not_significant():
-    """A "2 +- 3 ms delay" that shrinks the held-out gap has absorbed model error; 80 +- 5 ms is evidence."""
+    """A "2 +- 3 ms delay" that shrinks the held-out gap 10 +- 4 % (2.5 paired standard errors, short of
+    HELD_OUT_SIGMA) has absorbed model error; 80 +- 5 ms is evidence."""
     assert effects.evidence("input_delay", OUT, np.array([0.002, 0.0, -0.004, 0.0]), np.full(4, 0.003)) == pytest.approx(4 / 3)
     # time constants shape an effect but are no evidence of it: a rotor gain of 0 is no coupling
     assert effects.evidence("rotor_speed_coupling", OUT, np.array([0.0, 2.5]), np.array([0.1, 0.01])) == 0.0
@@ -272,9 +273,13 @@ def test_a_shrink_from_parameters_within_noise_of_no_effect_is_not_significant()
     z = np.zeros((2, k))
     z[0, :4], z[1, :4] = [0.002, 0.0, 0.0, 0.0], [0.08, 0.0, 0.0, 0.0]
     gap_base = np.full(len(OUT), 0.2)
+    alternate = np.array([1.0, -1.0, 1.0, -1.0])
+    spread = 0.04 / (0.5 * np.std(alternate, ddof=1))  # paired standard error 4 % over 4 windows
+    energy = np.stack([np.ones(4), 0.9 + spread * alternate, 0.91 + spread * alternate])
     weak, strong = shrink_entries(["input_delay", "input_delay"], OUT, _fit(z, np.full((2, k), 0.005)),
-                                  HeldOut(np.stack([gap_base, 0.9 * gap_base, 0.91 * gap_base]), np.ones((3, 4))), 3.0)
+                                  HeldOut(np.stack([gap_base, 0.9 * gap_base, 0.91 * gap_base]), energy), 3.0)
     assert weak.fitted.params["delay_lat"].value == 0.002 and weak.fitted.evidence_z == pytest.approx(0.4)
+    assert weak.shrink_se_pct == pytest.approx(4.0) and weak.shrink_pct < HELD_OUT_SIGMA * weak.shrink_se_pct
     assert weak.shrink_pct > strong.shrink_pct > 3.0
     assert strong.significant and not weak.significant and strong.fitted.evidence_z == pytest.approx(16.0)
     assert verdict([weak, strong]).startswith("input_delay (lat input delay delay 80 +- 5 ms)")
