@@ -10,7 +10,7 @@ import scipy.signal
 from jaxheli import make_simulator
 from jaxheli.synth.excitation import Excitation
 from jaxheli.effects import plant as augmented, registry as effects
-from jaxheli.gap.kalman import gust_filter, riccati
+from jaxheli.gap.kalman import _doubling, gust_filter, riccati
 from jaxheli.cost import nmse
 from jaxheli.gap.predictor import TRACKS, make_predictor, noise_variance, tune_track
 from jaxheli.gap.fit_effect import EffectFit
@@ -141,6 +141,32 @@ def test_riccati_matches_scipy_and_gain_vanishes_without_gusts():
     np.testing.assert_allclose(gust_filter(plant, var)[3], updated, rtol=1e-5, atol=1e-9)
     quiet = augmented.make_plant(jnp.asarray(TABLE2), jnp.asarray(augmented.no_effect(OUT)), DT, OUT)
     assert np.max(np.abs(np.asarray(gust_filter(quiet, var)[2])[13:])) < 1e-3
+
+
+def test_riccati_tangent_is_scipys_solution_differenced():
+    """The implicit tangent of :func:`riccati` (a Stein equation) equals a central difference of scipy's DARE
+    along a random direction of ``F``, ``H``, ``Q`` and ``R`` together, and JAX's tangent through the doubling."""
+    plant = augmented.make_plant(jnp.asarray(TABLE2), jnp.asarray(_eta(gust=(0, 0.6))), DT, OUT)
+    var = np.asarray([2e-3, 2e-3, 2e-4, 2e-4, 3e-5, 3e-5, 2e-3, 2e-4])
+    F, _, _, _ = gust_filter(plant, jnp.asarray(var))
+    H = np.concatenate([np.asarray(plant.C), np.zeros((8, 3))], axis=1)
+    q = np.r_[np.full(13, 1e-4), np.full(3, 0.05)]
+    rng = np.random.default_rng(0)
+    primal = (np.asarray(F), H, np.diag(q), np.diag(var))
+    direction = (1e-3 * rng.normal(size=F.shape), 1e-2 * rng.normal(size=H.shape) * (H != 0),
+                 np.diag(q * rng.uniform(-0.5, 0.5, 16)), np.diag(var * rng.uniform(-0.5, 0.5, 8)))
+
+    def scipy_dare(h):
+        Fh, Hh, Qh, Rh = (p + h * d for p, d in zip(primal, direction))
+        return scipy.linalg.solve_discrete_are(Fh.T, Hh.T, Qh, Rh)
+
+    h = 1e-4
+    reference = (scipy_dare(h) - scipy_dare(-h)) / (2 * h)
+    P, dP = jax.jvp(riccati, tuple(map(jnp.asarray, primal)), tuple(map(jnp.asarray, direction)))
+    np.testing.assert_allclose(P, scipy_dare(0.0), rtol=1e-7, atol=1e-12)
+    np.testing.assert_allclose(dP, reference, rtol=1e-5, atol=1e-6 * np.abs(reference).max())
+    _, through_doubling = jax.jvp(_doubling, tuple(map(jnp.asarray, primal)), tuple(map(jnp.asarray, direction)))
+    np.testing.assert_allclose(dP, through_doubling, rtol=1e-8, atol=1e-10 * np.abs(reference).max())
 
 
 def test_process_noise_cut_lowers_the_filters_white_state_noise():

@@ -3,7 +3,8 @@
 The wind on u, v, w is first-order Gauss-Markov (``wind+ = rho wind + sqrt(1 - rho^2) sigma white``,
 ``rho = exp(-dt / tau)``), the same process :func:`jaxheli.piloted_flight` flies. Augmenting the state
 with it, the steady-state predicted covariance solves the filter Riccati equation; it is computed by the
-structure-preserving doubling algorithm (a fixed number of doublings, so jit/vmap/grad friendly).
+structure-preserving doubling algorithm (a fixed number of doublings, so jit/vmap friendly), differentiated
+implicitly (a Stein equation for the tangent).
 """
 
 from __future__ import annotations
@@ -19,10 +20,10 @@ _FLOOR = 1e-12
 """Process-noise variance floor on every state: keeps unstable modes reachable, so the doubling converges."""
 
 
-def riccati(
+def _doubling(
     F: Float[Array, "n n"], H: Float[Array, "k n"], Q: Float[Array, "n n"], R: Float[Array, "k k"]
 ) -> Float[Array, "n n"]:
-    """Stabilising ``P = F P F' - F P H' (H P H' + R)^-1 H P F' + Q`` by doubling (needs ``R`` > 0)."""
+    """Stabilising solution of the filter Riccati equation by :data:`_DOUBLINGS` doublings (needs ``R`` > 0)."""
     n = F.shape[0]
     eye = jnp.eye(n, dtype=F.dtype)
 
@@ -35,6 +36,34 @@ def riccati(
     G0 = H.T @ jnp.linalg.solve(R, H)
     _, _, P = jax.lax.fori_loop(0, _DOUBLINGS, double, (F.T, G0, Q))
     return 0.5 * (P + P.T)
+
+
+@jax.custom_jvp
+def riccati(
+    F: Float[Array, "n n"], H: Float[Array, "k n"], Q: Float[Array, "n n"], R: Float[Array, "k k"]
+) -> Float[Array, "n n"]:
+    """Stabilising ``P = F P F' - F P H' (H P H' + R)^-1 H P F' + Q`` by doubling (needs ``R`` > 0).
+
+    Its tangent is the implicit one (:func:`_riccati_jvp`): one Stein equation instead of the doubling's
+    differentiated iterations, which were half of the diagnosis's Levenberg-Marquardt Jacobian."""
+    return _doubling(F, H, Q, R)
+
+
+@riccati.defjvp
+def _riccati_jvp(primals, tangents):
+    """``dP = A dP A' + W``: with ``L = P H' S^-1`` (``S = H P H' + R``), ``M = P - L H P`` and ``A = F (I - L H)``,
+    ``W = dF M F' + F M dF' + F (L dR L' - M dH' L' - L dH M) F' + dQ``, solved through ``I - A (x) A``."""
+    F, H, Q, R = primals
+    dF, dH, dQ, dR = tangents
+    P = _doubling(F, H, Q, R)
+    L = jnp.linalg.solve(H @ P @ H.T + R, H @ P).T
+    M = P - L @ H @ P
+    A = F - F @ L @ H
+    FM = F @ M
+    W = dF @ FM.T + FM @ dF.T + F @ (L @ dR @ L.T - M @ dH.T @ L.T - L @ dH @ M) @ F.T + dQ
+    n = F.shape[0]
+    dP = jnp.linalg.solve(jnp.eye(n * n, dtype=F.dtype) - jnp.kron(A, A), W.reshape(-1)).reshape(n, n)
+    return P, 0.5 * (dP + dP.T)
 
 
 def gust_filter(
