@@ -1,11 +1,11 @@
-"""Fit candidate effects, batched: one compiled Levenberg-Marquardt solve mapped over all candidates (the engines'
-driver, :func:`jaxheli.optim.boxed_lm.boxed_least_squares`; ``lax.map``, not ``vmap``: vmapped, the solves, each
-a loop over forward-mode scans, deadlocked XLA CPU's runtime with every thread waiting, for the nine fits of
-``tests/test_diagnose.py``'s clean-flight diagnosis in a plain process and for 23 fits under the test suite's
-XLA flags; mapped, neither hangs). The solve compiles with :data:`jaxheli._xla.QUICK_COMPILE`: it runs a few
-times per process, so compiling is most of its cost (blind trial on a 2-core CPU: the reference's 60-step fit
-compiled in 14 s instead of 77 s, the 27-row 15-step fit in 24 s instead of 66 s; the latter then ran in 10.8 s
-instead of 9.1 s).
+"""Fit candidate effects: one compiled Levenberg-Marquardt solve (the engines' driver,
+:func:`jaxheli.optim.boxed_lm.boxed_least_squares`) run for each candidate row in turn. Not ``vmap``: vmapped, the
+solves, each a loop over forward-mode scans, deadlocked XLA CPU's runtime with every thread waiting (the nine fits of
+``tests/test_diagnose.py``'s clean-flight diagnosis in a plain process, 23 fits under the test suite's XLA flags). Not
+``lax.map`` either: inside the map's loop a step of the reference's solve took 57 ms against 43 ms run alone (20-s,
+20-Hz flight, one CPU core), and the mapped program compiles anew for every row count. The solve compiles with
+:data:`jaxheli._xla.QUICK_COMPILE`: it runs a few times per process, so compiling is most of its cost (blind trial on
+a 2-core CPU: the reference's 60-step fit compiled in 14 s instead of 77 s).
 
 Every candidate frees ``K`` entries of ``eta`` (``index[C, K]``, padded with a dummy slot), each in its
 physical box (:func:`jaxheli.effects.registry.box`), started at the effect's start values. With the base
@@ -122,7 +122,6 @@ MAX_STEPS = 15
 diagnosis's thresholds were set (``jaxheli/gap/thresholds.json``)."""
 
 
-@eqx.filter_jit(compiler_options=QUICK_COMPILE)
 def fit_candidates(
     pred: Predictor,
     theta: Float[Array, "40"],
@@ -131,40 +130,54 @@ def fit_candidates(
     max_steps: int = MAX_STEPS,
     theta_box: Bounds | None = None,
 ) -> EffectFit:
-    """Fit every candidate on ``pred``'s flight (LM mapped over the candidates; ``max_steps`` is static); with
-    ``theta_box`` the base parameters are re-identified jointly in that box (it must contain ``theta``), else held
-    at ``theta``."""
+    """Fit every candidate on ``pred``'s flight (one compiled LM solve, :func:`_fit_row`, run for each row in turn;
+    ``max_steps`` is static); with ``theta_box`` the base parameters are re-identified jointly in that box (it must
+    contain ``theta``), else held at ``theta``."""
+    rows = (cand.index, cand.start, cand.lower, cand.upper)
+    fits = [_fit_row(pred, theta, base, *(r[i] for r in rows), max_steps, theta_box) for i in range(rows[0].shape[0])]
+    return EffectFit(*(jnp.stack(parts) for parts in zip(*fits)))
+
+
+@eqx.filter_jit(compiler_options=QUICK_COMPILE)
+def _fit_row(
+    pred: Predictor,
+    theta: Float[Array, "40"],
+    base: Float[Array, "E"],
+    idx: Int[Array, "K"],
+    z0: Float[Array, "K"],
+    lo: Float[Array, "K"],
+    hi: Float[Array, "K"],
+    max_steps: int,
+    theta_box: Bounds | None,
+) -> tuple[Array, ...]:
+    """One candidate row's fit: :class:`EffectFit`'s fields without the leading axis."""
     joint = theta_box is not None
+    box = Bounds(jnp.concatenate([theta_box.lower, lo]), jnp.concatenate([theta_box.upper, hi])) if joint \
+        else Bounds(lo, hi)
+    p0 = jnp.concatenate([theta, z0]) if joint else z0
 
-    def one(idx, z0, lo, hi):
-        box = Bounds(jnp.concatenate([theta_box.lower, lo]), jnp.concatenate([theta_box.upper, hi])) if joint \
-            else Bounds(lo, hi)
-        p0 = jnp.concatenate([theta, z0]) if joint else z0
+    def split(u):
+        p = box.from_unit(Bounds.clip_unit(u))
+        return (p[:N_PARAMS], p[N_PARAMS:]) if joint else (theta, p)
 
-        def split(u):
-            p = box.from_unit(Bounds.clip_unit(u))
-            return (p[:N_PARAMS], p[N_PARAMS:]) if joint else (theta, p)
-
-        def fit_res(u):
-            th, z = split(u)
-            return pred.residuals(th, embed(base, idx, z))
-
-        u0 = box.to_unit(p0)
-        sol = boxed_least_squares(lambda u, _: fit_res(u), least_squares_solver("lm", 1e-6, 1e-8, u0.shape[0]), u0,
-                                  None, max_steps)
-        u = sol.value
-        res = fit_res(u)
-        J = jax.jacfwd(fit_res)(u)
-        rss = jnp.sum(res**2)
-        active = jnp.any(J != 0, axis=0) & (box.width > 0)
-        colour = _colour_factor(res.reshape(pred.measured.shape))
-        cov = rss / (res.shape[0] - jnp.sum(active)) * colour * jnp.linalg.pinv(J.T @ J)
-        stderr = jnp.where(active, box.width * jnp.sqrt(jnp.abs(jnp.diag(cov))), 0.0)
+    def fit_res(u):
         th, z = split(u)
-        k = z0.shape[0]
-        return z, stderr[-k:], th, rss, res.shape[0] / colour, jnp.sum(active[-k:]), sol.num_steps, sol.successful
+        return pred.residuals(th, embed(base, idx, z))
 
-    return EffectFit(*jax.lax.map(lambda row: one(*row), (cand.index, cand.start, cand.lower, cand.upper)))
+    u0 = box.to_unit(p0)
+    sol = boxed_least_squares(lambda u, _: fit_res(u), least_squares_solver("lm", 1e-6, 1e-8, u0.shape[0]), u0,
+                              None, max_steps)
+    u = sol.value
+    res = fit_res(u)
+    J = jax.jacfwd(fit_res)(u)
+    rss = jnp.sum(res**2)
+    active = jnp.any(J != 0, axis=0) & (box.width > 0)
+    colour = _colour_factor(res.reshape(pred.measured.shape))
+    cov = rss / (res.shape[0] - jnp.sum(active)) * colour * jnp.linalg.pinv(J.T @ J)
+    stderr = jnp.where(active, box.width * jnp.sqrt(jnp.abs(jnp.diag(cov))), 0.0)
+    th, z = split(u)
+    k = z0.shape[0]
+    return z, stderr[-k:], th, rss, res.shape[0] / colour, jnp.sum(active[-k:]), sol.num_steps, sol.successful
 
 
 def _colour_factor(res: Float[Array, "N k"]) -> Float[Array, ""]:
