@@ -50,7 +50,7 @@ def riccati(
 
 
 @riccati.defjvp
-def _riccati_jvp(primals, tangents):
+def _riccati_jvp(primals: tuple[Array, ...], tangents: tuple[Array, ...]) -> tuple[Array, Array]:
     """``dP = A dP A' + W``: with ``L = P H' S^-1`` (``S = H P H' + R``), ``M = P - L H P`` and ``A = F (I - L H)``,
     ``W = dF M F' + F M dF' + F (L dR L' - M dH' L' - L dH M) F' + dQ``, solved through ``I - A (x) A``."""
     F, H, Q, R = primals
