@@ -1,5 +1,7 @@
 """Candidate effects: the augmented plant against numpy/scipy references, synthetic injection, ranking."""
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -75,6 +77,31 @@ def test_smoothed_restarts_match_numpy_least_squares_per_segment():
         make_predictor(flight, segment=20.0, smooth=True)
 
 
+@pytest.mark.parametrize("smooth", [False, True])
+def test_a_walking_bias_is_tracked_per_flight_as_numpy_filters_it(smooth):
+    """The bias candidate's walk: a bias state per channel in the restart filter, restarted with the state and held
+    inside each segment, equals the numpy filter's (scipy's DARE, a loop over samples) on a flight whose theta
+    reading wanders as a random walk; with the walk the predictions of u stay near the flight, without it they do
+    not."""
+    flight = _flight(None, noise=1.0, duration=19.0)
+    channel = OUT.index("theta")
+    walk = np.zeros(len(OUT))
+    walk[channel] = 0.01  # rad per sqrt(s): about 0.04 rad over the flight, 8 noise std
+    path = 0.02 + np.cumsum(np.random.default_rng(5).normal(0.0, walk[channel] * np.sqrt(DT), flight.n_samples))
+    wandering = dataclasses.replace(flight, outputs=flight.outputs + np.outer(path, np.eye(len(OUT))[channel]))
+    eta = _eta(walk=(channel, walk[channel]))
+    predictor = make_predictor(wandering, segment=2.0, track=0.1, smooth=smooth)
+    got = np.asarray(predictor(jnp.asarray(TABLE2), jnp.asarray(eta)))
+    expected = reference_prediction(TABLE2, wandering, segment=2.0, track=0.1, smooth=smooth, walk=walk)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-6 * np.abs(expected).max())
+    still = np.asarray(predictor(jnp.asarray(TABLE2), jnp.asarray(augmented.no_effect(OUT))))
+    # a theta bias restarted into the state tilts the gravity vector: u runs away inside each segment unless the
+    # filter holds the bias apart from the attitude
+    u = OUT.index("u")
+    error = lambda y: np.sqrt(np.mean((y - wandering.outputs)[:, u] ** 2))
+    assert error(got) < 0.7 * error(still)
+
+
 def test_restart_filter_trusts_the_true_model_and_follows_the_sensors_through_gusts():
     calm = make_predictor(_flight(None, noise=1.0), segment=2.0)
     assert tune_track(calm, jnp.asarray(TABLE2)) == TRACKS[0]
@@ -130,13 +157,14 @@ def test_sensor_model_rotation_scale_bias_and_inverse():
 def test_riccati_matches_scipy_and_gain_vanishes_without_gusts():
     plant = augmented.make_plant(jnp.asarray(TABLE2), jnp.asarray(_eta(gust=(0, 0.6))), DT, OUT)
     var = jnp.asarray([2e-3, 2e-3, 2e-4, 2e-4, 3e-5, 3e-5, 2e-3, 2e-4])
-    F, _, K, _ = gust_filter(plant, var)
-    H = np.concatenate([np.asarray(plant.C), np.zeros((8, 3))], axis=1)
+    F, H, K, _ = gust_filter(plant, var)
+    np.testing.assert_array_equal(H, np.concatenate([np.asarray(plant.C), np.zeros((8, 3)), np.eye(8)], axis=1))
     rho = np.exp(-DT / 1.0)
-    Q = np.diag(np.r_[np.full(13, 1e-12), np.full(3, 0.36 * (1 - rho**2) + 1e-12)])
+    Q = np.diag(np.r_[np.full(13, 1e-12), np.full(3, 0.36 * (1 - rho**2) + 1e-12), 1e-12 * np.asarray(var)])
     P = scipy.linalg.solve_discrete_are(np.asarray(F).T, H.T, Q, np.diag(np.asarray(var)))
     np.testing.assert_allclose(riccati(F, jnp.asarray(H), jnp.asarray(Q), jnp.diag(var)), P, rtol=1e-7, atol=1e-12)
     np.testing.assert_allclose(K, P @ H.T @ np.linalg.inv(H @ P @ H.T + np.diag(np.asarray(var))), rtol=1e-4, atol=1e-8)
+    assert np.max(np.abs(K[16:])) < 1e-5  # no walk: the biases all but fixed
     updated = P - P @ H.T @ np.linalg.solve(H @ P @ H.T + np.diag(np.asarray(var)), H @ P)
     np.testing.assert_allclose(gust_filter(plant, var)[3], updated, rtol=1e-5, atol=1e-9)
     quiet = augmented.make_plant(jnp.asarray(TABLE2), jnp.asarray(augmented.no_effect(OUT)), DT, OUT)
@@ -145,16 +173,17 @@ def test_riccati_matches_scipy_and_gain_vanishes_without_gusts():
 
 def test_riccati_tangent_is_scipys_solution_differenced():
     """The implicit tangent of :func:`riccati` (a Stein equation) equals a central difference of scipy's DARE
-    along a random direction of ``F``, ``H``, ``Q`` and ``R`` together, and JAX's tangent through the doubling."""
+    along a random direction of ``F``, ``H``, ``Q`` and ``R`` together (``F`` and ``H`` in their structure, as the
+    plant moves them: the bias states' identity block fixed), and JAX's tangent through the doubling."""
     plant = augmented.make_plant(jnp.asarray(TABLE2), jnp.asarray(_eta(gust=(0, 0.6))), DT, OUT)
     var = np.asarray([2e-3, 2e-3, 2e-4, 2e-4, 3e-5, 3e-5, 2e-3, 2e-4])
-    F, _, _, _ = gust_filter(plant, jnp.asarray(var))
-    H = np.concatenate([np.asarray(plant.C), np.zeros((8, 3))], axis=1)
-    q = np.r_[np.full(13, 1e-4), np.full(3, 0.05)]
+    F, H, _, _ = gust_filter(plant, jnp.asarray(var))
+    H = np.asarray(H)
+    q = np.r_[np.full(13, 1e-4), np.full(3, 0.05), 1e-3 * var]
     rng = np.random.default_rng(0)
     primal = (np.asarray(F), H, np.diag(q), np.diag(var))
-    direction = (1e-3 * rng.normal(size=F.shape), 1e-2 * rng.normal(size=H.shape) * (H != 0),
-                 np.diag(q * rng.uniform(-0.5, 0.5, 16)), np.diag(var * rng.uniform(-0.5, 0.5, 8)))
+    direction = (1e-3 * rng.normal(size=F.shape) * (F != 0), 1e-2 * rng.normal(size=H.shape) * (H != 0),
+                 np.diag(q * rng.uniform(-0.5, 0.5, q.size)), np.diag(var * rng.uniform(-0.5, 0.5, 8)))
 
     def scipy_dare(h):
         Fh, Hh, Qh, Rh = (p + h * d for p, d in zip(primal, direction))
@@ -213,7 +242,7 @@ def test_injected_truth_is_reproduced_by_its_predictor(groups):
 
 def test_params_layout_and_errors():
     index, start, lower, upper = effects.candidate_arrays(effects.ALL, OUT)
-    assert index.shape == start.shape == lower.shape == upper.shape == (8, 2 * len(OUT))
+    assert index.shape == start.shape == lower.shape == upper.shape == (8, 3 * len(OUT))
     assert set(index[0, :4]) == set(range(LAY["delay"].start, LAY["delay"].stop))
     assert np.all(index[0, 4:] == augmented.size(OUT))
     assert np.all(lower[:, 4:][index[:, 4:] == augmented.size(OUT)] == 0) and np.all(lower <= start)

@@ -11,14 +11,15 @@ from jaxheli.gap.segment_restart import restart_correction
 N, K = 6, 3
 
 
-def _numpy_correction(residual, F, H, P, noise_var, segment):
-    """Each segment's restart moved by the least squares of its own readings, with ``P`` as the prior: a loop."""
+def _numpy_correction(residual, F, H, P, noise_var, anchor, segment):
+    """Each segment's restart moved by the least squares of its own readings, with ``P`` as the prior (the first
+    segment's information plus ``diag(anchor)``): a loop."""
     out = np.zeros_like(residual)
     W = np.diag(1.0 / noise_var)
     for start in range(0, residual.shape[0], segment):
         r = residual[start:start + segment]
         phi = np.stack([H @ np.linalg.matrix_power(F, j) for j in range(1, len(r) + 1)])
-        info = np.einsum("jka,kl,jlb->ab", phi, W, phi) + np.linalg.inv(P)
+        info = np.einsum("jka,kl,jlb->ab", phi, W, phi) + np.linalg.inv(P) + (np.diag(anchor) if start == 0 else 0)
         d = np.linalg.solve(info, np.einsum("jka,kl,jl->a", phi, W, r))
         out[start:start + segment] = phi @ d
     return out
@@ -29,7 +30,8 @@ def _problem(seed, m):
     F = np.eye(N) * 1.01 + 0.05 * rng.standard_normal((N, N))  # slightly unstable, as the hover model is
     H = rng.standard_normal((K, N))
     A = rng.standard_normal((N, N))
-    return (rng.standard_normal((m, K)), F, H, A @ A.T + 0.1 * np.eye(N), rng.uniform(0.5, 2.0, K))
+    anchor = np.r_[np.zeros(N - 2), rng.uniform(1.0, 100.0, 2)]  # two states known at the start
+    return (rng.standard_normal((m, K)), F, H, A @ A.T + 0.1 * np.eye(N), rng.uniform(0.5, 2.0, K), anchor)
 
 
 @pytest.mark.parametrize("m, segment", [(30, 10), (29, 10), (7, 10), (31, 10)])
@@ -45,7 +47,8 @@ def test_tangent_equals_finite_differences_in_every_argument(m, segment):
     rng = np.random.default_rng(m)
     directions = [rng.standard_normal(a.shape) for a in args]
     directions[3] = directions[3] + directions[3].T  # a covariance moves symmetrically
-    for which in range(len(args)):  # one argument at a time, then all together
+    directions[5] = np.zeros_like(directions[5])  # the anchor is a constant of the predictor
+    for which in range(len(args) - 1):  # one argument at a time, then all together
         tangent = [d if i == which else np.zeros_like(d) for i, d in enumerate(directions)]
         _check_tangent(args, tangent, segment)
     _check_tangent(args, directions, segment)
@@ -62,11 +65,12 @@ def _check_tangent(args, tangent, segment, h=1e-6):
 
 def test_jacobian_under_jit_and_vmap_equals_finite_differences():
     """The tangent batched over many directions (``jax.jacfwd``, as the Levenberg-Marquardt fit uses it)."""
-    residual, F, H, P, var = (jnp.asarray(a) for a in _problem(7, 25))
+    residual, F, H, P, var, anchor = (jnp.asarray(a) for a in _problem(7, 25))
     scale = jnp.asarray(np.random.default_rng(3).standard_normal((4, N, N)))
 
     def f(p):
-        return restart_correction(residual * (1 + p[0]), F + jnp.einsum("i,iab->ab", p, scale), H, P, var, 10)
+        return restart_correction(residual * (1 + p[0]), F + jnp.einsum("i,iab->ab", p, scale), H, P, var, anchor,
+                                  10)
 
     jac = np.asarray(jax.jit(jax.jacfwd(f))(jnp.zeros(4)))
     h = 1e-6

@@ -90,6 +90,10 @@ _BIAS_BOUND = {"m/s": 3.0, "rad/s": 0.5, "rad": 0.35}
 _DRIFT_TIME = 10.0
 """A plausible drift reaches the plausible bias in no less than this many seconds."""
 
+_WALK_START = 0.003
+"""Start of each channel's walk intensity, as a fraction of its bound: away from ``|walk| = 0``, where the filter's
+bias gain and its gradient vanish."""
+
 
 def _channel_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
     units = [_UNITS.get(c, "-") for c in outputs]
@@ -98,7 +102,10 @@ def _channel_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> 
                  for i, (c, u, b) in enumerate(zip(outputs, units, bounds)))
     drift = tuple(Param(at("drift", i), f"drift_{c}", f"{u}/s", c, 0.0, False, b / _DRIFT_TIME)
                   for i, (c, u, b) in enumerate(zip(outputs, units, bounds)))
-    return bias + drift
+    walk_bounds = [b / np.sqrt(_DRIFT_TIME) for b in bounds]
+    walk = tuple(Param(at("walk", i), f"walk_{c}", f"{u}/s^0.5", c, _WALK_START * w, True, w)
+                 for i, (c, u, w) in enumerate(zip(outputs, units, walk_bounds)))
+    return bias + drift + walk
 
 
 def _offset(plant: PlantView, y: Float[Array, "k"], t: Float[Array, ""]) -> Float[Array, "k"]:
@@ -119,16 +126,20 @@ def _inject_bias_drift(dice: Dice) -> Draw:
 
 OUTPUT_BIAS_DRIFT = Effect(
     name="output_bias_drift",
-    groups=(Group("bias", None), Group("drift", None)),
+    groups=(Group("bias", None), Group("drift", None), Group("walk", None)),
     eta_order=7,
     params=_channel_params,
     terms=(Term("reading", _offset, _remove_offset),),
     inject=_inject_bias_drift,
 )
 """A constant bias and a linear drift on every output channel (the channel's units and per s; bias up to
-3 m/s, 0.5 rad/s or 0.35 rad, drift up to that bias per 10 s):
-``y + bias + drift t``. Injected: bias 2-4 noise standard deviations and a drift of as much again over the
-flight, on one random channel."""
+3 m/s, 0.5 rad/s or 0.35 rad, drift up to that bias per 10 s): ``y + bias + drift t``, and a random walk of the bias
+about that line (intensity ``walk``, the channel's unit per sqrt(s): the walk's std grows as ``walk sqrt(t)``; up to
+the plausible bias in 10 s). The walk has no plant term: it is a state of the restart filter
+(:func:`jaxheli.gap.kalman.gust_filter`), zero at each record's start and re-estimated along it, so a bias that
+wanders differently on the validation flight than on the training flight is credited for its statistics rather than
+for the training flight's path, which no fixed bias and drift can transfer. Injected: bias 2-4 noise standard deviations and a drift of as
+much again over the flight, on one random channel (no walk: the independent simulator's bias walks it)."""
 
 
 def _process_noise_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:

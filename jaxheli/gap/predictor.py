@@ -10,7 +10,8 @@ filter follows the measurements with process noise ``track`` times the measureme
 the diagnosis tunes ``track`` on the training flight (:func:`tune_track`): low when the model is close,
 high when it is far from the flight (identified models of real flights), so restarts stay near the data.
 The process-noise candidate adds its gust states to the filter: the wind it estimates restarts with the
-states and then decays with the gust time constant inside the segment.
+states and then decays with the gust time constant inside the segment. The bias candidate's walk adds a bias state
+per output channel: the bias it estimates restarts with the states and is held inside the segment.
 """
 
 from __future__ import annotations
@@ -29,6 +30,12 @@ from ..effects.plant import GUST_STATES, make_plant, no_effect
 from .kalman import gust_filter
 from .segment_restart import restart_correction
 from .thresholds import THRESHOLDS
+
+
+_ANCHOR = 1e6
+"""Prior information of each walking bias at the record's start (where the walk is zero: the bias is the fitted
+fixed bias), per unit of its channel's noise information: the first segment's restart may not move the biases, so
+that a fixed bias is told apart from the walk (re-estimated from the segment, the walk absorbed any fixed bias)."""
 
 
 class Predictor(eqx.Module):
@@ -50,33 +57,35 @@ class Predictor(eqx.Module):
 
     def __call__(self, theta: Float[Array, "40"], eta: Float[Array, "E"]) -> Float[Array, "N k"]:
         plant = make_plant(theta, eta, self.dt, self.outputs, g=self.g, max_delay=self.max_delay)
-        F, _, K, P = gust_filter(plant, self.noise_var, self.track)
+        F, H, K, P = gust_filter(plant, self.noise_var, self.track)
         idx = jnp.asarray(output_indices(self.outputs))
-        rho = F[-1, -1]
+        k, gusts = len(self.outputs), slice(N_STATES, N_STATES + len(GUST_STATES))
+        rho = F[gusts.start, gusts.start]
         states = plant.unmeasure(self.measured, self.time)
         x0 = jnp.zeros(N_STATES).at[idx].set(states[0])
         history, servo, rotor = plant.init_actuators()
 
         def step(carry, inp):
-            x, wind, history, servo, rotor, z = carry
+            x, wind, bias, history, servo, rotor, z = carry
             stick, after, restart = inp
             history, servo = plant.actuate(history, servo, stick)
             x_next, rotor_next = plant.advance(x, rotor, servo, wind)
-            z_x, _ = plant.advance(z[:N_STATES], rotor, servo, z[N_STATES:])
-            z = jnp.concatenate([z_x, rho * z[N_STATES:]])
-            z = z + K @ (after - z[idx])
-            out = x_next[idx]
+            z_x, _ = plant.advance(z[:N_STATES], rotor, servo, z[gusts])
+            z = jnp.concatenate([z_x, rho * z[gusts], z[gusts.stop:]])
+            z = z + K @ (after - H @ z)
+            out = x_next[idx] + bias
             x_next = jnp.where(restart, z[:N_STATES], x_next)
-            wind = jnp.where(restart, z[N_STATES:], rho * wind)
-            return (x_next, wind, history, servo, rotor_next, z), out
+            wind = jnp.where(restart, z[gusts], rho * wind)
+            bias = jnp.where(restart, z[gusts.stop:], bias)
+            return (x_next, wind, bias, history, servo, rotor_next, z), out
 
         restart = jnp.arange(1, self.time.shape[0]) % self.segment_samples == 0
-        z0 = jnp.concatenate([x0, jnp.zeros(len(GUST_STATES))])
-        init = (x0, jnp.zeros(len(GUST_STATES)), history, servo, rotor, z0)
+        z0 = jnp.concatenate([x0, jnp.zeros(len(GUST_STATES) + k)])
+        init = (x0, jnp.zeros(len(GUST_STATES)), jnp.zeros(k), history, servo, rotor, z0)
         _, ys = jax.lax.scan(step, init, (self.inputs[:-1], states[1:], restart))
         if self.smooth:
-            H = jnp.concatenate([plant.C, jnp.zeros((plant.C.shape[0], len(GUST_STATES)))], axis=1)
-            ys = ys + restart_correction(states[1:] - ys, F, H, P, self.noise_var, self.segment_samples)
+            anchor = jnp.concatenate([jnp.zeros(gusts.stop), _ANCHOR / self.noise_var])
+            ys = ys + restart_correction(states[1:] - ys, F, H, P, self.noise_var, anchor, self.segment_samples)
         ys = jnp.concatenate([x0[idx][None, :], ys], axis=0)
         return jax.vmap(plant.measure)(jnp.zeros((ys.shape[0], N_STATES)).at[:, idx].set(ys), self.time)
 

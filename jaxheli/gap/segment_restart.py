@@ -20,7 +20,7 @@ import jax.numpy as jnp
 from .._types import Array, Float
 
 
-def _parts(residual, F, H, P, noise_var, segment):
+def _parts(residual, F, H, P, noise_var, anchor, segment):
     """The correction ``c[s, j, k]`` and what its tangent reuses: ``F^j`` (``j = 1 .. segment``), ``Phi``, the
     weights, the seen-sample mask, each segment's information matrix, ``P^-1``, the padded residual, ``d``."""
     m, k = residual.shape
@@ -39,6 +39,7 @@ def _parts(residual, F, H, P, noise_var, segment):
     gram_last = jnp.einsum("jka,k,jkb->ab", phi[:last], w, phi[:last])
     p_inv = jnp.linalg.inv(P)
     info = jnp.concatenate([jnp.broadcast_to(gram, (count - 1, *gram.shape)), gram_last[None]]) + p_inv[None]
+    info = info.at[0].add(jnp.diag(anchor))
     r = _pad(residual, count, segment)
     d = jnp.linalg.solve(info, jnp.einsum("jka,k,sjk->sa", phi, w, r)[..., None])[..., 0]
     return jnp.einsum("jka,sa->sjk", phi, d), (powers, phi, w, seen, info, p_inv, r, d)
@@ -49,33 +50,35 @@ def _pad(x: Float[Array, "M k"], count: int, segment: int) -> Float[Array, "S J 
     return jnp.zeros((count * segment, x.shape[1]), x.dtype).at[: x.shape[0]].set(x).reshape(count, segment, -1)
 
 
-@functools.partial(jax.custom_jvp, nondiff_argnums=(5,))
+@functools.partial(jax.custom_jvp, nondiff_argnums=(6,))
 def restart_correction(
     residual: Float[Array, "M k"], F: Float[Array, "n n"], H: Float[Array, "k n"], P: Float[Array, "n n"],
-    noise_var: Float[Array, "k"], segment: int,
+    noise_var: Float[Array, "k"], anchor: Float[Array, "n"], segment: int,
 ) -> Float[Array, "M k"]:
     """Each segment's restart state re-estimated from the segment's own readings: the change of its predicted
     output states (``residual[m]``: readings minus prediction ``m + 1`` samples after the first restart, a restart
     every ``segment`` samples) when the restart state moves by the least-squares ``d`` of
     ``sum_j |r_j - H F^j d|^2 / noise_var + d' P^-1 d`` (``P``: the filter's covariance of the restart state, the
-    prior; ``j = 1 .. segment`` samples after it). The free response of the linear part is exact; airframe terms
+    prior; ``j = 1 .. segment`` samples after it; the first segment's prior information gains ``diag(anchor)``, a
+    constant: states known at the record's start, such as a bias walk's zero). The free response of the linear part is exact; airframe terms
     (drag, rotor speed) are held where the filter's restart put them. Restarts from a filter of the past alone
     leave errors that grow along the segment, and a least-squares fit of the dynamics then bends the model to
     shrink them (on effect-free flights of the model class it moved the parameters far from the truth); with the
     restart estimated from the segment too, the residual is what the dynamics cannot explain. The first segment,
     started from the first readings, gets the same prior."""
-    c, _ = _parts(residual, F, H, P, noise_var, segment)
+    c, _ = _parts(residual, F, H, P, noise_var, anchor, segment)
     return c.reshape(-1, residual.shape[1])[: residual.shape[0]]
 
 
 @restart_correction.defjvp
 def _restart_correction_jvp(segment, primals, tangents):
     """``dc = dPhi d + Phi dd`` with ``dd = A^-1 (sum_j dPhi_j' W e_j + Phi_j' dW e_j + Phi_j' W (dr_j - dPhi_j d)
-    + P^-1 dP P^-1 d)`` (``e_j``: residual after the correction, zero on padding), by recursions over vectors."""
-    residual, F, H, P, noise_var = primals
-    d_res, dF, dH, dP, d_var = tangents
+    + P^-1 dP P^-1 d)`` (``e_j``: residual after the correction, zero on padding), by recursions over vectors; the
+    anchor is a constant (its tangent ignored)."""
+    residual, F, H, P, noise_var, anchor = primals
+    d_res, dF, dH, dP, d_var, _ = tangents
     m, k = residual.shape
-    c, (powers, phi, w, seen, info, p_inv, r, d) = _parts(residual, F, H, P, noise_var, segment)
+    c, (powers, phi, w, seen, info, p_inv, r, d) = _parts(residual, F, H, P, noise_var, anchor, segment)
     count = d.shape[0]
     e = r - seen[..., None] * c
     after = jnp.einsum("jab,sb->jsa", powers, d)

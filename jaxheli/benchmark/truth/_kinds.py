@@ -37,7 +37,7 @@ KIND_CANDIDATES: dict[str, tuple[str, ...]] = {
 """Candidates that count as right per injected kind: a travel stop is a saturation (its rate limit acts as a lag
 on large steps); a link delay in whole frames an input delay; a second-order servo a lag or, at low frequency, a
 delay; Dryden turbulence process noise; drag against the wind quadratic drag; a rotated gyro triad and velocity frame a
-mounting misalignment; a wandering bias a bias with drift; governor droop the rotor-speed coupling; quantisation and
+mounting misalignment; a wandering bias a bias with drift and walk; governor droop the rotor-speed coupling; quantisation and
 an aliased vibration line none (no candidate has their form). ``two_at_once``: either part's candidates."""
 
 SINGLE: tuple[str, ...] = ("servo_limits", "logger_delay", "servo_dynamics", "dryden", "drag", "imu_misalignment",
@@ -140,12 +140,14 @@ def _imu_misalignment(d: Dice) -> tuple[Effects, dict]:
 
 def _bias_walk(d: Dice) -> tuple[Effects, dict]:
     """A turn-on bias of 2-4 noise std times strength on one rate or attitude channel, wandering by as much again
-    (std) over the flight; shared: the turn-on bias."""
+    (std) over the flight; shared: the turn-on bias and the walk's intensity (as the candidate's ``walk``, its square
+    root: unit per sqrt(s)), each flight walking its own path."""
     channel = str(d.rng.choice([c for c in ("p", "q", "r", "phi", "theta") if c in d.outputs]))
     sigma = d.noise[channel] * d.strength
     walk = BiasWalk(channel, d.sign() * d.rng.uniform(2.0, 4.0) * sigma,
                     (d.rng.uniform(2.0, 4.0) * sigma) ** 2 / d.duration)
-    return Effects(bias=walk), {"output_bias_drift": {f"bias_{channel}": walk.start}}
+    return Effects(bias=walk), {"output_bias_drift": {f"bias_{channel}": walk.start,
+                                                      f"walk_{channel}": float(np.sqrt(walk.intensity))}}
 
 
 def _rotor_droop(d: Dice) -> tuple[Effects, dict]:
