@@ -11,7 +11,10 @@ takes effect only when ``jaxheli`` is imported before JAX's CPU backend is first
 
 from __future__ import annotations
 
+import functools
 import os
+from collections.abc import Callable
+from typing import Any
 
 _FLAG = "--xla_cpu_enable_concurrency_optimized_scheduler"
 
@@ -20,7 +23,25 @@ QUICK_COMPILE = {"xla_cpu_use_fusion_emitters": False}
 simulation), where compiling is most of the time: XLA CPU's fusion emitters make faster loops but take about twice
 as long to compile. Measured on the output-error polish of flight A (2-core CPU): the solve compiled in 4.5 s with
 them and 2.4 s without, and its 30 steps ran in 4.3 s against 4.5 s. The population kernel, run thousands of times,
-keeps them (1000 IWO generations: 10.3 s with, 14.0 s without)."""
+keeps them (1000 IWO generations: 10.3 s with, 14.0 s without). XLA CPU's own: other backends refuse them, so
+programs take them through :func:`quick_jit`."""
+
+
+def quick_jit(fun: Callable[..., Any], jit: Callable[..., Any] | None = None, **kwargs: Any) -> Callable[..., Any]:
+    """``jit(fun, **kwargs)`` (default ``equinox.filter_jit``) compiled with :data:`QUICK_COMPILE` where JAX's default
+    backend is the CPU and with XLA's defaults elsewhere: a GPU backend stops at an option it does not know ("No such
+    compile option", seen on an H200 with jax 0.11.2)."""
+    import equinox as eqx
+    import jax
+
+    jit = eqx.filter_jit if jit is None else jit
+    quick, plain = jit(fun, compiler_options=QUICK_COMPILE, **kwargs), jit(fun, **kwargs)
+
+    @functools.wraps(fun)
+    def call(*args: Any, **kw: Any) -> Any:
+        return (quick if jax.default_backend() == "cpu" else plain)(*args, **kw)
+
+    return call
 
 
 def configure() -> None:

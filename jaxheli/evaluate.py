@@ -5,12 +5,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
 from ._types import Array, Float
-from ._xla import QUICK_COMPILE
+from ._xla import quick_jit
 from .cost import metrics, search_cost
 from .data.flight import FlightData
 from .model import G_SI, N_PARAMS, N_STATES, PARAM_NAMES, TABLE2, params_array
@@ -96,7 +95,7 @@ def search_cost_of(params: Float[np.ndarray, "40"], problem: Problem | Records) 
                                  part.target)) for part in parts(problem))
 
 
-@eqx.filter_jit(compiler_options=QUICK_COMPILE)
+@quick_jit
 def _outputs(sim: Simulator, theta: Float[Array, "40"]) -> Float[Array, "N k"]:
     """``sim(theta)`` as one program compiled for a single run."""
     return sim(theta)

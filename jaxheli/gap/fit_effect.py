@@ -33,7 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, Float, Int
-from .._xla import QUICK_COMPILE
+from .._xla import quick_jit
 from ..bounds import Bounds
 from ..cost import nmse
 from ..effects import registry as fx
@@ -138,7 +138,7 @@ def fit_candidates(
     return EffectFit(*(jnp.stack(parts) for parts in zip(*fits)))
 
 
-@eqx.filter_jit(compiler_options=QUICK_COMPILE)
+@quick_jit
 def _fit_row(
     pred: Predictor,
     theta: Float[Array, "40"],

@@ -35,7 +35,7 @@ import optimistix as optx
 from jaxtyping import Complex
 
 from .._types import Array, ArrayLike, Bool, Float
-from .._xla import QUICK_COMPILE
+from .._xla import quick_jit
 from ..bounds import Bounds, Free
 from ..data.flight import FlightData
 from ..model import INPUT_NAMES, PARAM_NAMES
@@ -188,7 +188,7 @@ def _screen(fitted: _Fitted, v: Float[Array, "S n"]) -> Float[Array, " S"]:
     return jax.lax.map(lambda x: average_j(targets, axes.theta(x)), v, batch_size=250)
 
 
-@eqx.filter_jit(compiler_options=QUICK_COMPILE)
+@quick_jit
 def _solve(
     fitted: _Fitted, v0: Float[Array, "K n"], solver: optx.AbstractLeastSquaresSolver, max_steps: int
 ) -> tuple[Array, Array, Array, Array, Array]:

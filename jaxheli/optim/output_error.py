@@ -28,7 +28,7 @@ import numpy as np
 
 from .._progress import note
 from .._types import Array, ArrayLike, Float
-from .._xla import QUICK_COMPILE
+from .._xla import quick_jit
 from ..bounds import Free
 from ..model import build_ab
 from ..problem import Problem, Records, parts
@@ -64,7 +64,7 @@ def restart_interval(
     return fitting[-1] if fitting else SEGMENTS[0]
 
 
-@functools.partial(jax.jit, compiler_options=QUICK_COMPILE)
+@functools.partial(quick_jit, jit=jax.jit)
 def _state_matrix(theta: Float[Array, "40"], g: float) -> Float[Array, "13 13"]:
     """The hover model's ``A`` (one small program, instead of ``build_ab``'s op-by-op dispatch)."""
     return build_ab(theta, g)[0]

@@ -34,7 +34,7 @@ import numpy as np
 import optimistix as optx
 
 from .._types import Array, ArrayLike, Float
-from .._xla import QUICK_COMPILE
+from .._xla import quick_jit
 from ..bounds import Bounds, Free
 from ..cost import paper_cost, pearson
 from ..data.flight import FlightData
@@ -141,7 +141,7 @@ def _score(v0: Array, v: Array, boxed: _Boxed) -> tuple[Array, tuple[Array, Arra
     return loss, (pair, cost, rss)
 
 
-@eqx.filter_jit(compiler_options=QUICK_COMPILE)
+@quick_jit
 def _solve(
     boxed: _Boxed, solver: optx.AbstractLeastSquaresSolver, max_steps: int
 ) -> tuple[Array, Array, Array, Array, Array, Array, optx.RESULTS]:

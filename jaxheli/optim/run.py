@@ -38,7 +38,7 @@ import numpy as np
 from tqdm import tqdm
 
 from .._types import Array, ArrayLike, Float, Int
-from .._xla import QUICK_COMPILE
+from .._xla import quick_jit
 from ._base import AbstractPopulationOptimizer, Candidates, CostFn, raw_key, score
 
 _FORMAT = "jaxheli-optim-checkpoint-2"
@@ -175,7 +175,7 @@ def _initial_state(optimizer: AbstractPopulationOptimizer, cost_fn: CostFn, key:
     return jax.vmap(optimizer.init_tell)(key, candidates, _flat_cost(optimizer, cost_fn, candidates))
 
 
-_init = eqx.filter_jit(_initial_state, compiler_options=QUICK_COMPILE)
+_init = quick_jit(_initial_state)
 """The initial state, compiled on its own for its one call (the generations' scan keeps XLA's defaults)."""
 
 

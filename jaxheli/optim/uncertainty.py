@@ -28,7 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, ArrayLike, Bool, Float
-from .._xla import QUICK_COMPILE
+from .._xla import quick_jit
 from ..bounds import Bounds, Free
 from ..data.flight import FlightData
 from ..model import N_PARAMS, N_STATES, PARAM_NAMES
@@ -96,7 +96,7 @@ def _json(x: float) -> float | str:
     return x if np.isfinite(x) else "inf"
 
 
-@eqx.filter_jit(compiler_options=QUICK_COMPILE)
+@quick_jit
 def _jacobian(fn: Callable[[Array], Array], theta: Array, idx: Array) -> tuple[Array, Array]:
     """Residuals and their Jacobian over ``theta[idx]`` (forward mode)."""
     def of_free(v):

@@ -12,13 +12,12 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, Float
-from .._xla import QUICK_COMPILE
+from .._xla import quick_jit
 from ..data.flight import FlightData
 from ..model import N_STATES
 from .simulate import Simulator, make_simulator
@@ -70,7 +69,7 @@ def open_loop(sim: Simulator) -> Simulator:
     return sim.configure(outputs=sim.outputs, g=sim.g, hold=sim.hold)
 
 
-@eqx.filter_jit(compiler_options=QUICK_COMPILE)
+@quick_jit
 def _fit_x0(theta: Array, sim: Simulator, target: Array, horizon: float | None, bias: bool) -> tuple[Array, Array]:
     if horizon is not None:
         n = max(2, min(sim.inputs.shape[0], int(round(horizon / sim.dt)) + 1))
