@@ -58,6 +58,17 @@ def test_layout_is_the_historical_one():
     assert [t.apply.__name__ for t in EFFECTS.terms(("command", "servo"))] == ["_delay", "_saturate", "_lag"]
 
 
+def test_the_bias_walks_on_rates_and_attitudes_only():
+    """Each output channel has a bias and a drift; only the gyros' and attitudes' biases walk (velocities keep their
+    walk slots at zero: a velocity walk and a slow wind look alike within a restart segment)."""
+    names = [p.name for p in registry.params("output_bias_drift", OUT)]
+    for c in OUT:
+        assert {f"bias_{c}", f"drift_{c}"} <= set(names)
+    assert [n for n in names if n.startswith("walk_")] == [f"walk_{c}" for c in OUT if c not in ("u", "v", "w")]
+    assert {p.slot for p in registry.params("output_bias_drift", OUT)} < set(range(*layout(OUT)["bias"].indices(E))) \
+        | set(range(*layout(OUT)["drift"].indices(E))) | set(range(*layout(OUT)["walk"].indices(E)))
+
+
 def test_a_ninth_effect_is_laid_out_and_parameterised_from_its_record_alone():
     assert NINE.names == registry.ALL + ("gyro_offset",)
     assert NINE.layout(OUT) == layout(OUT) | {"offset": slice(E, E + 1)}

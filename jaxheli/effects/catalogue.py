@@ -90,6 +90,12 @@ _BIAS_BOUND = {"m/s": 3.0, "rad/s": 0.5, "rad": 0.35}
 _DRIFT_TIME = 10.0
 """A plausible drift reaches the plausible bias in no less than this many seconds."""
 
+_NO_WALK = ("m/s",)
+"""Units of the channels whose bias does not walk: velocities (satellite-navigation velocity has no bias
+instability, as gyros and the attitudes integrated from them have), and within a restart segment a walking
+velocity bias and a slow wind look alike (design seeds 40-49 of Dryden turbulence: 3 of 10 named the bias candidate
+through its velocity channels; their walk slots stay 0)."""
+
 _WALK_START = 0.003
 """Start of each channel's walk intensity, as a fraction of its bound: away from ``|walk| = 0``, where the filter's
 bias gain and its gradient vanish."""
@@ -104,7 +110,7 @@ def _channel_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> 
                   for i, (c, u, b) in enumerate(zip(outputs, units, bounds)))
     walk_bounds = [b / np.sqrt(_DRIFT_TIME) for b in bounds]
     walk = tuple(Param(at("walk", i), f"walk_{c}", f"{u}/s^0.5", c, _WALK_START * w, True, w)
-                 for i, (c, u, w) in enumerate(zip(outputs, units, walk_bounds)))
+                 for i, (c, u, w) in enumerate(zip(outputs, units, walk_bounds)) if u not in _NO_WALK)
     return bias + drift + walk
 
 
@@ -134,8 +140,8 @@ OUTPUT_BIAS_DRIFT = Effect(
 )
 """A constant bias and a linear drift on every output channel (the channel's units and per s; bias up to
 3 m/s, 0.5 rad/s or 0.35 rad, drift up to that bias per 10 s): ``y + bias + drift t``, and a random walk of the bias
-about that line (intensity ``walk``, the channel's unit per sqrt(s): the walk's std grows as ``walk sqrt(t)``; up to
-the plausible bias in 10 s). The walk has no plant term: it is a state of the restart filter
+about that line on the rate and attitude channels (intensity ``walk``, the channel's unit per sqrt(s): the walk's std
+grows as ``walk sqrt(t)``; up to the plausible bias in 10 s; none on velocities, :data:`_NO_WALK`). The walk has no plant term: it is a state of the restart filter
 (:func:`jaxheli.gap.kalman.gust_filter`), zero at each record's start and re-estimated along it, so a bias that
 wanders differently on the validation flight than on the training flight is credited for its statistics rather than
 for the training flight's path, which no fixed bias and drift can transfer. Injected: bias 2-4 noise standard deviations and a drift of as
