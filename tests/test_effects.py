@@ -78,6 +78,20 @@ def test_smoothed_restarts_match_numpy_least_squares_per_segment():
 
 
 @pytest.mark.parametrize("smooth", [False, True])
+def test_a_predictor_without_bias_states_matches_numpy_without_them(smooth):
+    """Fits and scores whose walks are all zero run the filter without the bias states (``for_walks(False)``): the
+    numpy filter built without them gives the same predictions, and with them (at their floor) nearly the same."""
+    flight = _flight(None, noise=1.0, duration=19.0)
+    eta, theta = jnp.asarray(augmented.no_effect(OUT)), jnp.asarray(TABLE2)
+    predictor = make_predictor(flight, segment=2.0, track=0.1, smooth=smooth)
+    got = np.asarray(predictor.for_walks(False)(theta, eta))
+    expected = reference_prediction(TABLE2, flight, segment=2.0, track=0.1, smooth=smooth, biases=False)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-7 * np.abs(expected).max())
+    np.testing.assert_allclose(got, np.asarray(predictor(theta, eta)), rtol=0, atol=1e-3 * np.abs(expected).max())
+    assert not np.allclose(got, np.asarray(predictor(theta, eta)), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("smooth", [False, True])
 def test_a_walking_bias_is_tracked_per_flight_as_numpy_filters_it(smooth):
     """The bias candidate's walk: a bias state per channel in the restart filter, restarted with the state and held
     inside each segment, equals the numpy filter's (scipy's DARE, a loop over samples) on a flight whose theta
@@ -242,7 +256,8 @@ def test_injected_truth_is_reproduced_by_its_predictor(groups):
 
 def test_params_layout_and_errors():
     index, start, lower, upper = effects.candidate_arrays(effects.ALL, OUT)
-    assert index.shape == start.shape == lower.shape == upper.shape == (8, 3 * len(OUT))
+    widest = 2 * len(OUT) + 5  # the bias candidate: a bias and a drift per channel, a walk on p q r phi theta
+    assert index.shape == start.shape == lower.shape == upper.shape == (8, widest)
     assert set(index[0, :4]) == set(range(LAY["delay"].start, LAY["delay"].stop))
     assert np.all(index[0, 4:] == augmented.size(OUT))
     assert np.all(lower[:, 4:][index[:, 4:] == augmented.size(OUT)] == 0) and np.all(lower <= start)

@@ -38,6 +38,14 @@ class Stacked(eqx.Module):
 
     flights: tuple[Predictor, ...]
 
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        return self.flights[0].outputs
+
+    def for_walks(self, walks: bool) -> Stacked:
+        """Every flight's predictor with the bias states in its filter or not (:meth:`Predictor.for_walks`)."""
+        return Stacked(tuple(p.for_walks(walks) for p in self.flights))
+
     def residuals(self, theta: Float[Array, "40"], eta: Float[Array, "E"]) -> Float[Array, " M"]:
         """Every flight's normalised output errors (:meth:`Predictor.residuals`), one after the other."""
         return jnp.concatenate([p.residuals(theta, eta) for p in self.flights])

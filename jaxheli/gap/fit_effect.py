@@ -37,7 +37,7 @@ from .._xla import quick_jit
 from ..bounds import Bounds
 from ..cost import nmse
 from ..effects import registry as fx
-from ..effects.plant import no_effect
+from ..effects.plant import layout, no_effect, size
 from ..model import N_PARAMS
 from ..optim.boxed_lm import boxed_least_squares, least_squares_solver
 from .predictor import Predictor
@@ -134,8 +134,17 @@ def fit_candidates(
     ``max_steps`` is static); with ``theta_box`` the base parameters are re-identified jointly in that box (it must
     contain ``theta``), else held at ``theta``."""
     rows = (cand.index, cand.start, cand.lower, cand.upper)
-    fits = [_fit_row(pred, theta, base, *(r[i] for r in rows), max_steps, theta_box) for i in range(rows[0].shape[0])]
+    walk = _walk_slots(pred.outputs)
+    still = not np.any(np.asarray(base)[walk])
+    fits = [_fit_row(pred.for_walks(not still or np.isin(np.asarray(cand.index[i]), walk).any()), theta, base,
+                     *(r[i] for r in rows), max_steps, theta_box) for i in range(rows[0].shape[0])]
     return EffectFit(*(jnp.stack(parts) for parts in zip(*fits)))
+
+
+def _walk_slots(outputs: tuple[str, ...]) -> Int[np.ndarray, "W"]:
+    """The slots of ``eta`` of the output biases' walks (:func:`~jaxheli.gap.kalman.gust_filter`): a fit or score
+    whose ``eta`` leaves them all zero runs the predictor without the bias states (:meth:`Predictor.for_walks`)."""
+    return np.arange(*layout(outputs)["walk"].indices(size(outputs)))
 
 
 @quick_jit
@@ -187,11 +196,17 @@ def _colour_factor(res: Float[Array, "N k"]) -> Float[Array, ""]:
     return (1.0 + r1) / (1.0 - r1)
 
 
-@eqx.filter_jit
 def score(
     pred: Predictor, thetas: Float[Array, "C 40"], etas: Float[Array, "C E"]
 ) -> tuple[Float[Array, "C k"], Float[Array, "C S"]]:
     """Gap per channel (:func:`jaxheli.cost.nmse`) and residual energy per significance window of each
-    ``(theta, eta)`` pair."""
+    ``(theta, eta)`` pair (the bias states in the filter only where a walk is not zero)."""
+    return _score(pred.for_walks(np.any(np.asarray(etas)[:, _walk_slots(pred.outputs)])), thetas, etas)
+
+
+@eqx.filter_jit
+def _score(
+    pred: Predictor, thetas: Float[Array, "C 40"], etas: Float[Array, "C E"]
+) -> tuple[Float[Array, "C k"], Float[Array, "C S"]]:
     y = jax.vmap(pred)(thetas, etas)
     return nmse(y, pred.measured), pred.segment_energy(y)

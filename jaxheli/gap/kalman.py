@@ -76,10 +76,12 @@ def _riccati_jvp(primals: tuple[Array, ...], tangents: tuple[Array, ...]) -> tup
 
 
 def gust_filter(
-    plant: Plant, noise_var: Float[Array, "k"], track: float = 0.0
+    plant: Plant, noise_var: Float[Array, "k"], track: float = 0.0, walks: bool = True
 ) -> tuple[Array, Array, Array, Array]:
     """``(F, H, K, P)``: augmented transition ``[x, wind, bias]``, its output matrix ``[C, 0, I]`` (of the output
     states), steady-state filter gain and the covariance of the updated state ``z|k`` (the error of a restart from it).
+    ``walks`` (static) ``False`` leaves the bias states out (``[x, wind]``, ``[C, 0]``): for a plant whose walks are
+    all zero, where they would only carry their floor.
 
     ``plant``'s ``gust`` group gives sigma (m/s), tau (s) and a cut ``c`` of ``track`` (to ``track e^-|c|``), its
     ``walk`` group each output bias's walk intensity (the channel's unit per sqrt(s));
@@ -93,11 +95,12 @@ def gust_filter(
     track = track * jnp.exp(-jnp.abs(cut))
     rho = jnp.exp(-plant.dt / (jnp.abs(tau) + 1e-6))
     n, m, k = plant.Ad.shape[0], len(GUST_STATES), plant.C.shape[0]
-    F = jnp.block([[plant.Ad, plant.E, jnp.zeros((n, k))], [jnp.zeros((m, n)), rho * jnp.eye(m), jnp.zeros((m, k))],
-                   [jnp.zeros((k, n + m)), jnp.eye(k)]])
-    H = jnp.concatenate([plant.C, jnp.zeros((k, m)), jnp.eye(k)], axis=1)
+    b = k if walks else 0
+    F = jnp.block([[plant.Ad, plant.E, jnp.zeros((n, b))], [jnp.zeros((m, n)), rho * jnp.eye(m), jnp.zeros((m, b))],
+                   [jnp.zeros((b, n + m)), jnp.eye(b)]])
+    H = jnp.concatenate([plant.C, jnp.zeros((k, m)), jnp.eye(k, b)], axis=1)
     q = jnp.concatenate([track**2 * (plant.C.T @ noise_var) + _FLOOR, jnp.full(m, sigma**2 * (1.0 - rho**2) + _FLOOR),
-                         plant.group("walk") ** 2 * plant.dt + _BIAS_FLOOR * noise_var])
+                         (plant.group("walk") ** 2 * plant.dt + _BIAS_FLOOR * noise_var)[:b]])
     R = jnp.diag(noise_var)
     P = riccati(F, H, jnp.diag(q), R)
     K = P @ H.T @ jnp.linalg.inv(H @ P @ H.T + R)
