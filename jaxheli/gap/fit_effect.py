@@ -135,8 +135,8 @@ def fit_candidates(
     contain ``theta``), else held at ``theta``."""
     rows = (cand.index, cand.start, cand.lower, cand.upper)
     walk = _walk_slots(pred.outputs)
-    still = not np.any(np.asarray(base)[walk])
-    fits = [_fit_row(pred.for_walks(not still or np.isin(np.asarray(cand.index[i]), walk).any()), theta, base,
+    base_walks = bool(np.any(np.asarray(base)[walk]))
+    fits = [_fit_row(pred.for_walks(base_walks or np.isin(np.asarray(cand.index[i]), walk).any()), theta, base,
                      *(r[i] for r in rows), max_steps, theta_box) for i in range(rows[0].shape[0])]
     return EffectFit(*(jnp.stack(parts) for parts in zip(*fits)))
 
