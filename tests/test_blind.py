@@ -14,7 +14,7 @@ from jaxheli.effects import plant as augmented
 from jaxheli.effects import registry as fx
 from jaxheli.benchmark.blind import (
     BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, _process_on, _worker_cores, base_model, blind_flights, explainable,
-    markdown, run_blind, sample_injection, scenario, summarise, summarise_bases, summarise_records,
+    markdown, resolvable, run_blind, sample_injection, scenario, summarise, summarise_bases, summarise_records,
     wilson_interval,
 )
 from jaxheli.cli import main
@@ -73,10 +73,10 @@ def test_scenarios_cover_every_combination_and_the_box_holds_every_truth():
 RECORDS = [
     {"kind": "input_delay", "top": "input_delay", "correct": True, "in_tie": True, "magnitude_error": 0.1,
      "shrink_pct": 40.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 3.0, "oracle_magnitude_error": 0.05,
-     "magnitude_error_train": 0.2, "detectable": True},
+     "magnitude_error_train": 0.2, "detectable": True, "resolvable": True},
     {"kind": "input_delay", "top": "actuator_lag", "correct": False, "in_tie": True, "magnitude_error": 0.3,
      "shrink_pct": 45.0, "oracle_shrink_pct": 50.0, "oracle_evidence_z": 0.4, "oracle_magnitude_error": 0.25,
-     "magnitude_error_train": 0.4, "detectable": True},
+     "magnitude_error_train": 0.4, "detectable": True, "resolvable": False},
     {"kind": "input_delay", "top": "none", "correct": False, "in_tie": False, "magnitude_error": 0.5,
      "shrink_pct": 1.0, "oracle_shrink_pct": 4.0, "oracle_evidence_z": 9.0, "oracle_magnitude_error": 0.6,
      "magnitude_error_train": 0.7, "detectable": False},
@@ -84,7 +84,7 @@ RECORDS = [
     {"kind": "none", "top": "none", "correct": True, "structure_named": True},
     {"kind": "none", "top": "process_noise", "correct": False},
 ]
-"""Three delay trials (two detectable) and three controls, as a blind run records them."""
+"""Three delay trials (two detectable, one of them resolvable) and three controls, as a blind run records them."""
 
 
 def test_summary_arithmetic_and_table():
@@ -96,7 +96,11 @@ def test_summary_arithmetic_and_table():
     assert row["in_tie_detectable_pct"] == 100.0
     assert row["magnitude_error_median_detectable"] == pytest.approx(0.2)
     assert row["shrink_vs_oracle_pct"] == pytest.approx(85.0)
-    # the second trial's training flight does not resolve its effect (oracle at 0.4 standard errors)
+    # the second trial's training flight does not show its effect (the simulator's verdict), nor resolve it (oracle
+    # at 0.4 standard errors)
+    assert row["resolvable_trials"] == 1 and row["top1_resolvable_pct"] == 100.0
+    assert row["magnitude_error_median_resolvable"] == pytest.approx(0.1)
+    assert not resolvable({**records[0], "detectable": False}) and not resolvable(records[1])
     assert row["identifiable_trials"] == 1 and row["top1_identifiable_pct"] == 100.0
     assert row["magnitude_error_median_identifiable"] == pytest.approx(0.1)
     assert row["oracle_magnitude_error_median_detectable"] == pytest.approx(0.15)
@@ -109,8 +113,8 @@ def test_summary_arithmetic_and_table():
     # both detectable trials' oracles shrink the gap 50 % (>= MIN_SHRINK): the form could be credited in each
     assert row["explainable_trials"] == 2 and row["top1_explainable_pct"] == 50.0
     assert not explainable({**records[0], "oracle_shrink_pct": MIN_SHRINK - 0.1}) and not explainable(records[2])
-    assert ("| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 1 | 100 | 100 | 10.0 % | 20.0 % | 5.0 % | 85.0 | 0 "
-            "| 2 | 50 |") in markdown(s)
+    assert ("| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 1 | 100 | 100 | 10.0 % | 1 | 100 | 100 | 10.0 % "
+            "| 20.0 % | 5.0 % | 85.0 | 0 | 2 | 50 |") in markdown(s)
 
 
 def test_an_earlier_runs_records_are_summarised_again_without_running(tmp_path, capsys):
@@ -235,6 +239,7 @@ def test_small_blind_run_attributes_saturation():
     assert saturation["top"] == "control_saturation" and saturation["correct"] and saturation["in_tie"]
     assert saturation["magnitude_error"] < 0.25 and saturation["oracle_shrink_pct"] > 10
     assert saturation["oracle_evidence_z"] >= 1.0
+    assert saturation["resolvable"] == (saturation["detectable"] and saturation["detectability_train"] > 1.0)
     assert len(saturation["ranking"]) == 8 and saturation["box"] == "hull"
     assert all(e["effect"] == "control_saturation" for e in saturation["recheck"] if e["significant"])
 

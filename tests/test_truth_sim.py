@@ -186,6 +186,17 @@ def test_detectability_is_false_without_an_effect_and_true_for_a_large_one():
     assert none.score == 0.0 and not none.detectable
 
 
+def test_a_servo_stop_that_only_the_validation_flight_reaches_is_detectable_but_not_resolvable():
+    trial = ts.truth_trial("servo_limits", 0, TABLE2, style="regulation", duration=10.0)
+    train_clean = ts.fly(TABLE2, ts.Effects(), style="regulation", duration=10.0, dt=0.05, seed=0,
+                         noise=trial.noise)
+    assert trial.train_score == pytest.approx(
+        ts.detectability_ratio(trial.train.clean, train_clean.clean, trial.noise))
+    assert trial.detectable and trial.train_score < 0.1 and not trial.resolvable
+    delay = ts.truth_trial("logger_delay", 0, TABLE2, style="regulation", duration=10.0)
+    assert delay.train_score > 1.0 and delay.resolvable
+
+
 def test_the_logger_reads_the_channels_and_noise_of_the_librarys_synthetic_flights():
     assert ts.OUTPUTS == DEFAULT_OUTPUTS
     assert ts.NOISE == {c: DEFAULT_NOISE[c] for c in DEFAULT_OUTPUTS}
@@ -219,6 +230,7 @@ def test_the_blind_check_flies_independent_trials_and_starts_its_oracle_at_the_s
                                                        outputs=DEFAULT_OUTPUTS)
     assert inj.kind == "quadratic_drag" and right == ("quadratic_drag",) and inj.primary == "Xuu"
     assert facts["detectable"] == (facts["detectability"] > 1) and train.source != validate.source
+    assert facts["resolvable"] == (facts["detectable"] and facts["detectability_train"] > 1)
     index, start, lower, upper = _oracle_row(inj.kind, inj, *fx.candidate_arrays(fx.ALL, DEFAULT_OUTPUTS))
     assert start[0, 0] == pytest.approx(np.clip(inj.value, lower[0, 0], upper[0, 0]))
     with pytest.raises(ValueError, match="unknown truth simulator"):

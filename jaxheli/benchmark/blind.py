@@ -168,13 +168,13 @@ def blind_flights(injection: Injection, seed: int, where: Scenario, *, duration:
 
 
 def _library_detectability(injection: Injection, seed: int, where: Scenario, *, duration: float, dt: float,
-                           outputs: tuple[str, ...]) -> float:
+                           outputs: tuple[str, ...], train: bool = False) -> float:
     """The library simulator's detectability of ``injection``, decided before any fit: its validation flight
-    (:func:`blind_flights`) flown noise-free with the effect and again without it (same excitation and seed, the
-    pilot's feedback re-flown), scored by :func:`~jaxheli.benchmark.truth.detectability_ratio` against the
-    trial's sensor-noise std."""
-    common = dict(duration=duration, dt=dt, outputs=outputs, excitation=VALIDATE_EXCITATION, seed=2 * seed + 1,
-                  noise=0.0)
+    (``train``: its training flight; :func:`blind_flights`) flown noise-free with the effect and again without it
+    (same excitation and seed, the pilot's feedback re-flown), scored by
+    :func:`~jaxheli.benchmark.truth.detectability_ratio` against the trial's sensor-noise std."""
+    excitation, flight_seed = (STYLES[where.style], 2 * seed) if train else (VALIDATE_EXCITATION, 2 * seed + 1)
+    common = dict(duration=duration, dt=dt, outputs=outputs, excitation=excitation, seed=flight_seed, noise=0.0)
     flown = piloted_flight(where.theta, effect=injection.eta, gust=injection.gust, gust_tau=injection.gust_tau,
                            **common)
     bare = piloted_flight(where.theta, **common)
@@ -228,16 +228,19 @@ def trial_flights(
     if truth == "library":
         inj = sample_injection(kind, 7919 * seed + 101 * KINDS.index(kind), outputs, duration, where.strength)
         train, validate = blind_flights(inj, 7919 * seed + KINDS.index(kind), where, duration=duration, dt=dt)
-        score = _library_detectability(inj, 7919 * seed + KINDS.index(kind), where, duration=duration, dt=dt,
-                                       outputs=outputs)
-        return inj, train, validate, (kind,), {"detectability": score, "detectable": score > 1.0}
+        score, train_score = (_library_detectability(inj, 7919 * seed + KINDS.index(kind), where, duration=duration,
+                                                     dt=dt, outputs=outputs, train=role) for role in (False, True))
+        return inj, train, validate, (kind,), {"detectability": score, "detectable": score > 1.0,
+                                               "detectability_train": train_score,
+                                               "resolvable": score > 1.0 and train_score > 1.0}
     if truth == "independent":
         ind = independent_trial(kind, seed, where.theta, style=where.style, noise=where.noise,
                                 strength=where.strength, duration=duration, dt=dt, outputs=outputs)
         inj = Injection(ind.oracle, ind.eta, 0.0, 1.0, ind.primary, ind.value)
         return inj, ind.train, ind.validate, ind.candidates, {
             "oracle_kind": ind.oracle, "parts": list(ind.parts), "right": list(ind.candidates),
-            "detectability": ind.score, "detectable": ind.detectable}
+            "detectability": ind.score, "detectable": ind.detectable, "detectability_train": ind.train_score,
+            "resolvable": ind.resolvable}
     raise ValueError(f"blind trial: unknown truth simulator {truth!r}; simulators are {tuple(TRUTHS_SIM)}")
 
 
@@ -471,6 +474,14 @@ def detectable(record: dict[str, Any]) -> bool:
     return bool(record["detectable"])
 
 
+def resolvable(record: dict[str, Any]) -> bool:
+    """A detectable trial (:func:`detectable`) whose *training* flight shows the effect too, decided by its truth
+    simulator the same way (:mod:`jaxheli.benchmark.truth`; ``False`` in records written before the training flight
+    was scored): the trials the data can resolve, since the diagnosis learns each candidate from the training
+    flight and only scores it on the validation flight."""
+    return detectable(record) and bool(record.get("resolvable", False))
+
+
 def _pct(flags: list[bool]) -> float | None:
     return 100.0 * float(np.mean(flags)) if flags else None
 
@@ -492,8 +503,8 @@ def _subset(rows: list[dict[str, Any]], label: str) -> dict[str, Any]:
 
 
 def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
-    """Per kind: trials, top-1 % and in-tie-set %, over all trials, over the detectable ones (:func:`detectable`)
-    and over the identifiable ones (:func:`identifiable`), with the median relative
+    """Per kind: trials, top-1 % and in-tie-set %, over all trials, over the detectable ones (:func:`detectable`),
+    the resolvable ones (:func:`resolvable`) and the identifiable ones (:func:`identifiable`), with the median relative
     magnitude error of each subset (the diagnosis's, its training fit's and the oracle's), and the median shrink
     vs oracle % (detectable), and the % of trials whose verdict names the base model's structure
     (:mod:`jaxheli.gap.structure`), and the explainable trials (:func:`explainable`) with their top-1 %; plus the
@@ -507,6 +518,7 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
         if kind != "none":
             seen = [r for r in rs if detectable(r)]
             row.update(_subset(seen, "detectable"))
+            row.update(_subset([r for r in seen if resolvable(r)], "resolvable"))
             row.update(_subset([r for r in seen if identifiable(r)], "identifiable"))
             reach = [r for r in seen if explainable(r)]
             row.update(explainable_trials=len(reach), top1_explainable_pct=_pct([r["correct"] for r in reach]))
@@ -532,11 +544,13 @@ def markdown(summary: dict[str, Any]) -> str:
     method)."""
     lines = ["| kind | trials | top-1 % | in tie % | detectable (max_k rms(y_eff - y_clean) / sigma_k > 1) | "
              "top-1 % detectable | in tie % detectable | median magnitude error (detectable) | "
+             "resolvable (training flight too) | top-1 % resolvable | in tie % resolvable | "
+             "median magnitude error (resolvable) | "
              f"identifiable (oracle z >= {MIN_Z:g}) | top-1 % identifiable | in tie % identifiable | "
              "median magnitude error (identifiable) | training fit's (identifiable) | oracle's (identifiable) | "
              f"median shrink vs oracle % | base structure named % | explainable (oracle shrink >= {MIN_SHRINK:g} %) | "
              "top-1 % explainable |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "|" + "---|" * 22]
 
     def cell(value: float | None, fmt: str) -> str:
         return "-" if value is None else format(value, fmt)
@@ -547,7 +561,7 @@ def markdown(summary: dict[str, Any]) -> str:
     for kind, row in summary["kinds"].items():
         subsets = "".join(f" | {row.get(f'{s}_trials', '-')} | {cell(row.get(f'top1_{s}_pct'), '.0f')}"
                           f" | {cell(row.get(f'in_tie_{s}_pct'), '.0f')}"
-                          f" | {error(row.get(f'magnitude_error_median_{s}'))}" for s in ("detectable", "identifiable"))
+                          f" | {error(row.get(f'magnitude_error_median_{s}'))}" for s in ("detectable", "resolvable", "identifiable"))
         lines.append(f"| {kind} | {row['trials']} | {cell(row['top1_pct'], '.0f')} | {cell(row['in_tie_pct'], '.0f')}"
                      f"{subsets} | {error(row.get('train_magnitude_error_median_identifiable'))}"
                      f" | {error(row.get('oracle_magnitude_error_median_identifiable'))}"

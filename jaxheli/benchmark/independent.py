@@ -35,6 +35,8 @@ class IndependentTrial:
     value: float
     score: float
     detectable: bool
+    train_score: float
+    resolvable: bool
 
 
 def independent_trial(kind: str, seed: int, theta: np.ndarray, *, style: str, noise: float = 1.0,
@@ -57,7 +59,7 @@ def independent_trial(kind: str, seed: int, theta: np.ndarray, *, style: str, no
     flights = [_flight(trial, record, seed, role, outputs) for role, record in
                (("train", trial.train), ("validate", trial.validate))]
     return IndependentTrial(kind, injected.parts, *flights, injected.candidates, oracle, eta, primary, float(value),
-                            trial.score, trial.detectable)
+                            trial.score, trial.detectable, trial.train_score, trial.resolvable)
 
 
 def _flight(trial: TruthTrial, record: Record, seed: int, role: str, outputs: tuple[str, ...]) -> FlightData:
@@ -67,6 +69,7 @@ def _flight(trial: TruthTrial, record: Record, seed: int, role: str, outputs: tu
                 "dt": float(record.time[1] - record.time[0]), "noise": dict(zip(outputs, trial.noise.tolist())),
                 "kind": injected.kind, "parts": list(injected.parts), "candidates": list(injected.candidates),
                 "shared": injected.shared, "effects": dataclasses.asdict(injected.effects),
-                "detectability": trial.score, "detectable": trial.detectable}
+                "detectability": trial.score, "detectable": trial.detectable,
+                "detectability_train": trial.train_score, "resolvable": trial.resolvable}
     return FlightData(record.time, record.sticks, record.measured, tuple(outputs),
                       source=f"independent truth flight ({injected.kind}, seed {seed}, {role})", metadata=metadata)
