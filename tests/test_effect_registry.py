@@ -46,7 +46,7 @@ E = EFFECTS.size(OUT)
 
 
 def test_layout_is_the_historical_one():
-    sizes = {"delay": 4, "lag": 4, "sat": 4, "drag": 2, "rotor": 2, "gust": 3, "mis": 4, "bias": K, "drift": K,
+    sizes = {"delay": 4, "lag": 4, "sat": 4, "drag": 4, "rotor": 2, "gust": 3, "mis": 4, "bias": K, "drift": K,
              "walk": K}
     stops = np.cumsum(list(sizes.values()))
     assert layout(OUT) == {g: slice(int(stop - n), int(stop)) for (g, n), stop in zip(sizes.items(), stops)}
@@ -137,9 +137,9 @@ def test_registry_rejects_clashes():
 
 
 def test_drag_and_rotor_speed_step_match_a_numpy_reference():
-    xuu, yvv, gain, tau = -2.0, 1.5, 3.0, 0.4
+    xuu, yvv, wind_u, wind_v, gain, tau = -2.0, 1.5, 0.6, -0.9, 3.0, 0.4
     eta = no_effect(OUT)
-    eta[layout(OUT)["drag"]] = xuu, yvv
+    eta[layout(OUT)["drag"]] = xuu, yvv, wind_u, wind_v
     eta[layout(OUT)["rotor"]] = gain, -tau  # the time constant acts through its magnitude
     plant = make_plant(jnp.asarray(TABLE2), jnp.asarray(eta), DT, OUT)
     A, B = (np.asarray(M) for M in build_ab(TABLE2))
@@ -156,7 +156,9 @@ def test_drag_and_rotor_speed_step_match_a_numpy_reference():
     rotor_next = (t * rotor + DT * gain * u[3]) / (t + DT)
     extra = np.zeros(n)
     iu, iv, ir = (STATE_NAMES.index(s) for s in ("u", "v", "r"))
-    extra[iu], extra[iv], extra[ir] = xuu * x[iu] * abs(x[iu]), yvv * x[iv] * abs(x[iv]), rotor_next
+    air_u, air_v = x[iu] - wind_u, x[iv] - wind_v  # drag on the airspeed, less its value at trim (x = 0)
+    extra[iu] = xuu * (air_u * abs(air_u) + wind_u * abs(wind_u))
+    extra[iv], extra[ir] = yvv * (air_v * abs(air_v) + wind_v * abs(wind_v)), rotor_next
     states = tuple(jnp.asarray(rotor) if term.init else None for term in EFFECTS.terms(("airframe",)))
     got, (_, got_rotor) = plant.advance(jnp.asarray(x), states, jnp.asarray(u), jnp.asarray(w))
     np.testing.assert_allclose(got, Ad @ x + Bd @ u + Ed @ w + DT * extra, rtol=1e-10, atol=1e-12)

@@ -20,7 +20,7 @@ def test_start_rows_try_the_axes_together_where_asked_then_each_alone():
             expected[2 + 5 * t + axis, axis] = value
     np.testing.assert_array_equal(rows, expected)
     drag = effects.start_rows("quadratic_drag", OUT)
-    np.testing.assert_array_equal(drag, [[0, 0], [-3, -3], [-3, 0], [0, -3]])
+    np.testing.assert_array_equal(drag, [[0, 0, 0, 0], [-3, -3, 0, 0], [-3, 0, 0, 0], [0, -3, 0, 0]])
     delay = effects.start_rows("input_delay", OUT)  # each axis alone: never all four delayed at once
     np.testing.assert_array_equal(delay, np.where(np.r_[np.zeros((1, 4)), np.eye(4)] > 0, 0.15, 0.01))
     for name in ("output_bias_drift", "process_noise", "rotor_speed_coupling", "sensor_misalignment"):

@@ -102,13 +102,14 @@ def test_dryden_turbulence_has_the_standards_variance_and_spectrum():
 def test_drag_acts_on_the_velocity_relative_to_the_wind_about_trim():
     drag = ts.Drag(-2.0, -1.5, (0.5, -0.3))
     u = np.linspace(-2, 2, 9)
-    fu, fv = drag.force(u, u)
+    fu, fv = drag.force(u, 0.0 * u)
     np.testing.assert_allclose(fu, -2.0 * np.abs(u) * u)
-    np.testing.assert_allclose(fv, -1.5 * np.abs(u) * u)
+    np.testing.assert_allclose(drag.force(3.0, 4.0), (-2.0 * 5.0 * 3.0, -1.5 * 5.0 * 4.0))  # along the airspeed
     x = np.zeros(13)
     x[0], x[1] = 1.2, -0.4
     accel = drag.accel(x, np.zeros(5))
-    np.testing.assert_allclose(accel[:2], [-2.0 * (0.7 * 0.7 - (-0.5 * 0.5)), -1.5 * (-0.1 * 0.1 - 0.3 * 0.3)])
+    air, trim = np.hypot(0.7, -0.1), np.hypot(0.5, 0.3)
+    np.testing.assert_allclose(accel[:2], [-2.0 * (air * 0.7 - trim * -0.5), -1.5 * (air * -0.1 - trim * 0.3)])
     assert not np.any(accel[2:]) and not np.any(drag.accel(np.zeros(13), np.zeros(5)))
 
 

@@ -178,15 +178,23 @@ with 0.5-2 s correlation."""
 
 def _drag_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
     return (Param(at("drag", 0), "Xuu", "1/m", "u", 0.0, False, 10.0, tries=(-3.0,), together=True),
-            Param(at("drag", 1), "Yvv", "1/m", "v", 0.0, False, 10.0, tries=(-3.0,), together=True))
+            Param(at("drag", 1), "Yvv", "1/m", "v", 0.0, False, 10.0, tries=(-3.0,), together=True),
+            Param(at("drag", 2), "wind_u", "m/s", "u", 0.0, False, 5.0, shape=True),
+            Param(at("drag", 3), "wind_v", "m/s", "v", 0.0, False, 5.0, shape=True))
 
 
 def _drag(plant: PlantView, state: None, x: Float[Array, "13"], applied: Float[Array, "4"]
           ) -> tuple[None, Float[Array, "13"]]:
-    """``Xuu u|u|`` and ``Yvv v|v|`` on the speed derivatives."""
-    xuu, yvv = plant.group("drag")
+    """``Xuu a|a| - Xuu a0|a0|`` on ``u'`` with airspeed ``a = u - wind_u`` (``a0 = -wind_u`` at trim), and the
+    same with ``Yvv`` and ``wind_v`` on ``v'``."""
+    xuu, yvv, wind_u, wind_v = plant.group("drag")
     iu, iv = STATE_NAMES.index("u"), STATE_NAMES.index("v")
-    return state, jnp.zeros_like(x).at[iu].set(xuu * x[iu] * jnp.abs(x[iu])).at[iv].set(yvv * x[iv] * jnp.abs(x[iv]))
+
+    def quadratic(k: Float[Array, ""], speed: Float[Array, ""], wind: Float[Array, ""]) -> Float[Array, ""]:
+        air = speed - wind
+        return k * (air * jnp.abs(air) + wind * jnp.abs(wind))
+
+    return state, jnp.zeros_like(x).at[iu].set(quadratic(xuu, x[iu], wind_u)).at[iv].set(quadratic(yvv, x[iv], wind_v))
 
 
 def _inject_drag(dice: Dice) -> Draw:
@@ -196,14 +204,17 @@ def _inject_drag(dice: Dice) -> Draw:
 
 QUADRATIC_DRAG = Effect(
     name="quadratic_drag",
-    groups=(Group("drag", 2),),
+    groups=(Group("drag", 4),),
     eta_order=3,
     params=_drag_params,
     terms=(Term("airframe", _drag),),
     inject=_inject_drag,
 )
-"""Quadratic drag on u and v (1/m, plausible up to 10; further starts at -3 on both and on each). Injected: 1-3 1/m on
-both."""
+"""Quadratic drag on the airspeed along u and v in a steady wind, less its trim value (1/m, plausible up to 10; further
+starts at -3 on both and on each; wind along body u and v in m/s, plausible up to 5, shape parameters): a drag acts on
+the air's speed past the rotor, and in a hover in wind the trim sits on the slope of the drag curve, so about that trim
+the drag is the even ``-Xuu u^2 sign(wind)`` beside a linear part the base model's ``Xu`` shares, which the odd
+``Xuu u|u|`` of still air cannot represent. Injected: 1-3 1/m on both, in still air."""
 
 
 def _saturate(plant: PlantView, state: None, sticks: Float[Array, "4"], servo: Float[Array, "4"]

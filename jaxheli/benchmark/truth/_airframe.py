@@ -19,8 +19,9 @@ _PED, _COL = STICKS.index("ped"), STICKS.index("col")
 
 @dataclasses.dataclass(frozen=True)
 class Drag:
-    """``X_uu |u_rel| u_rel`` and ``Y_vv |v_rel| v_rel`` (1/m) on the velocity relative to a steady wind ``wind``
-    (m/s, along body u and v), less its trim value (the hover in that wind is trimmed)."""
+    """``X_uu |V| u_rel`` and ``Y_vv |V| v_rel`` (1/m) on the velocity relative to a steady wind ``wind`` (m/s, along
+    body u and v; ``|V|`` the horizontal airspeed ``sqrt(u_rel^2 + v_rel^2)``: drag along the relative wind, unlike the
+    catalogue's per-axis form), less its trim value (the hover in that wind is trimmed)."""
 
     xuu: float
     yvv: float
@@ -28,7 +29,8 @@ class Drag:
 
     def force(self, u_rel: np.ndarray, v_rel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Drag accelerations (m/s^2) at relative velocities ``u_rel``, ``v_rel`` (m/s)."""
-        return self.xuu * np.abs(u_rel) * u_rel, self.yvv * np.abs(v_rel) * v_rel
+        speed = np.hypot(u_rel, v_rel)
+        return self.xuu * speed * u_rel, self.yvv * speed * v_rel
 
     def accel(self, x: np.ndarray, gust: np.ndarray) -> np.ndarray:
         """Extra acceleration on the states at state ``x`` with air-mass motion ``gust`` (``u_g v_g ...``)."""

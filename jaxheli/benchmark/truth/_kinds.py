@@ -122,10 +122,12 @@ def _dryden(d: Dice) -> tuple[Effects, dict]:
 
 def _drag(d: Dice) -> tuple[Effects, dict]:
     """``X_uu``, ``Y_vv`` of -1 to -3 1/m times strength (at least -9) against a steady wind of up to 1 m/s on u
-    and v; shared: both."""
+    and v; shared: both and the wind."""
     xuu, yvv = (max(-9.0, -d.rng.uniform(1.0, 3.0) * d.strength) for _ in range(2))
-    drag = Drag(xuu, yvv, tuple(d.rng.uniform(-1.0, 1.0, 2)))
-    return Effects(drag=drag), {"quadratic_drag": {"Xuu": xuu, "Yvv": yvv}}
+    wind = d.rng.uniform(-1.0, 1.0, 2)
+    drag = Drag(xuu, yvv, (float(wind[0]), float(wind[1])))
+    return Effects(drag=drag), {"quadratic_drag": {"Xuu": xuu, "Yvv": yvv, "wind_u": drag.wind[0],
+                                                   "wind_v": drag.wind[1]}}
 
 
 def _imu_misalignment(d: Dice) -> tuple[Effects, dict]:
