@@ -23,7 +23,10 @@ def test_start_rows_try_the_axes_together_where_asked_then_each_alone():
     np.testing.assert_array_equal(drag, [[0, 0, 0, 0], [-3, -3, 0, 0], [-3, 0, 0, 0], [0, -3, 0, 0]])
     delay = effects.start_rows("input_delay", OUT)  # each axis alone: never all four delayed at once
     np.testing.assert_array_equal(delay, np.where(np.r_[np.zeros((1, 4)), np.eye(4)] > 0, 0.15, 0.01))
-    for name in ("output_bias_drift", "process_noise", "rotor_speed_coupling", "sensor_misalignment"):
+    mis = effects.start_rows("sensor_misalignment", OUT)  # the IMU's yaw alone at +-0.1 rad
+    np.testing.assert_array_equal(mis[:, 0], [0.0, 0.1, -0.1])
+    np.testing.assert_array_equal(mis[:, 1:], 0.0)
+    for name in ("output_bias_drift", "process_noise", "rotor_speed_coupling"):
         ps = effects.params(name, OUT)
         np.testing.assert_array_equal(effects.start_rows(name, OUT), [[p.start for p in ps]])
 

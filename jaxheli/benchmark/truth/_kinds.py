@@ -132,12 +132,12 @@ def _drag(d: Dice) -> tuple[Effects, dict]:
 
 def _imu_misalignment(d: Dice) -> tuple[Effects, dict]:
     """A gyro triad at 2-5 deg of yaw times strength (at most 15 deg), tilted up to 1 deg, with 3-8 % scale errors
-    on p and q, and a velocity frame at 0.5-1.5 times that yaw; shared: the gyro yaw and the scales."""
+    on p and q, and a velocity frame at 0.5-1.5 times that yaw; shared: both yaws and the scales."""
     yaw = d.sign() * np.deg2rad(min(15.0, d.rng.uniform(2.0, 5.0) * d.strength))
     scale = (d.sign() * d.rng.uniform(0.03, 0.08), d.sign() * d.rng.uniform(0.03, 0.08), 0.0)
     imu = Imu(yaw, tuple(np.deg2rad(d.rng.uniform(-1.0, 1.0, 2))), scale, yaw * d.rng.uniform(0.5, 1.5))
-    return Effects(imu=imu), {"sensor_misalignment": {"yaw_misalignment": yaw, "scale_p": scale[0],
-                                                      "scale_q": scale[1]}}
+    return Effects(imu=imu), {"sensor_misalignment": {"yaw_misalignment": yaw, "velocity_yaw": imu.velocity_yaw,
+                                                      "scale_p": scale[0], "scale_q": scale[1]}}
 
 
 def _bias_walk(d: Dice) -> tuple[Effects, dict]:
