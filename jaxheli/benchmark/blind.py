@@ -561,7 +561,8 @@ def markdown(summary: dict[str, Any]) -> str:
     for kind, row in summary["kinds"].items():
         subsets = "".join(f" | {row.get(f'{s}_trials', '-')} | {cell(row.get(f'top1_{s}_pct'), '.0f')}"
                           f" | {cell(row.get(f'in_tie_{s}_pct'), '.0f')}"
-                          f" | {error(row.get(f'magnitude_error_median_{s}'))}" for s in ("detectable", "resolvable", "identifiable"))
+                          f" | {error(row.get(f'magnitude_error_median_{s}'))}"
+                          for s in ("detectable", "resolvable", "identifiable"))
         lines.append(f"| {kind} | {row['trials']} | {cell(row['top1_pct'], '.0f')} | {cell(row['in_tie_pct'], '.0f')}"
                      f"{subsets} | {error(row.get('train_magnitude_error_median_identifiable'))}"
                      f" | {error(row.get('oracle_magnitude_error_median_identifiable'))}"
