@@ -1,11 +1,12 @@
 """Wall time of ``jaxheli.gap.diagnose`` on one flight pair of the independent truth simulator (issue 34's
 diagnosis timings)::
 
-    python benchmarks/diagnose_time.py [--kind logger_delay] [--seed 3] [--duration 60] [--dt 0.02] [--max-steps 15] [--cache] [--quiet]
+    python benchmarks/diagnose_time.py [--kind logger_delay] [--seed 3] [--duration 60] [--dt 0.02] [--max-steps 15] [--native] [--cache] [--quiet]
 
 The pair is the blind check's (:func:`jaxheli.benchmark.independent.independent_trial`, scenario of ``--seed``),
 the base model a 100-step PEM fit in the authors' box, as a user would identify it; the time printed is the
-diagnosis's alone (float64, compile included), then its verdict; progress lines go to stderr (``--quiet``: none).
+diagnosis's alone (float64, compile included; at the thresholds' step, the flights low-passed and resampled to it,
+or ``--native`` at the flights' own), then its verdict; progress lines go to stderr (``--quiet``: none).
 ``--cache`` reads and writes compiled programs in the command line's cache (:func:`jaxheli.use_compile_cache`): run it
 twice for the time of a user's second diagnosis.
 """
@@ -22,6 +23,7 @@ from jaxheli.benchmark.blind import DEFAULT_OUTPUTS, base_model, scenario  # noq
 from jaxheli.benchmark.independent import independent_trial  # noqa: E402
 from jaxheli.gap.diagnose import diagnose  # noqa: E402
 from jaxheli.gap.fit_effect import MAX_STEPS  # noqa: E402
+from jaxheli.gap.prepare import SAMPLE_S  # noqa: E402
 
 
 def main() -> None:
@@ -32,6 +34,8 @@ def main() -> None:
     p.add_argument("--dt", type=float, default=0.02, help="sample time, s (default 0.02: 50 Hz)")
     p.add_argument("--max-steps", type=int, default=MAX_STEPS,
                    help=f"LM steps per candidate fit (default {MAX_STEPS}, the diagnosis's)")
+    p.add_argument("--native", action="store_true",
+                   help="diagnose at the flights' own step (default: the thresholds' step, jaxheli.gap.prepare.SAMPLE_S)")
     p.add_argument("--cache", action="store_true",
                    help="read and write compiled programs in $JAXHELI_CACHE (default: compile afresh)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
@@ -44,9 +48,11 @@ def main() -> None:
     with reporting(not args.quiet):
         theta, _ = base_model(trial.train, "pem", args.seed, box="authors")
         t0 = time.perf_counter()
-        found = diagnose(theta, trial.train, trial.validate, max_steps=args.max_steps)
-    print(f"diagnose: {time.perf_counter() - t0:.1f} s ({args.duration:g} s at {1 / args.dt:g} Hz, truth {where.truth}, "
-          f"{args.kind} withheld, {args.max_steps} LM steps per fit)")
+        found = diagnose(theta, trial.train, trial.validate, max_steps=args.max_steps,
+                         dt=None if args.native else SAMPLE_S)
+    step = found.flights["train"].dt
+    print(f"diagnose: {time.perf_counter() - t0:.1f} s ({args.duration:g} s at {1 / args.dt:g} Hz, diagnosed at "
+          f"{1 / step:g} Hz, truth {where.truth}, {args.kind} withheld, {args.max_steps} LM steps per fit)")
     print(f"verdict: {found.attribution.verdict}")
 
 

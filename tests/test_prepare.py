@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from jaxheli.cli import main
+from jaxheli.data.flight import FlightData
+from jaxheli.gap.prepare import SAMPLE_S, at_step
 from jaxheli.io import load, save_npz
 from jaxheli.synth.piloted import piloted_flight
 
@@ -20,6 +22,34 @@ def _same_flight(a, b):
     assert a.output_names == b.output_names
     for field in ("time", "inputs", "outputs"):
         np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+
+
+def _tones(dt, seconds=20.0):
+    """A flight of step ``dt`` (s) whose p carries 1.0 at 1 Hz plus 1.0 at 12 Hz, inputs a 0.5-Hz sine."""
+    t = np.arange(0.0, seconds, dt)
+    p = np.sin(2 * np.pi * 1.0 * t) + np.sin(2 * np.pi * 12.0 * t)
+    inputs = np.tile(np.sin(2 * np.pi * 0.5 * t)[:, None], (1, 4))
+    return FlightData(t, inputs, np.stack([p, 0.1 * t], axis=1), ("p", "phi"), "tones.npz")
+
+
+def test_the_diagnosis_step_keeps_the_band_and_drops_what_would_alias():
+    """A 50-Hz flight comes to the thresholds' 20-Hz step: the 1-Hz tone in phase at 95-100 % of its amplitude,
+    the 12-Hz tone (it would alias to 8 Hz) gone, the ramp and the inputs kept; a flight at the step is left
+    as it is."""
+    assert SAMPLE_S == 0.05
+    coarse = _tones(SAMPLE_S)
+    assert at_step(coarse) is coarse and at_step(_tones(0.1)).dt == 0.1 and at_step(_tones(0.02), None).dt == 0.02
+    fine = at_step(_tones(0.02))
+    assert fine.dt == pytest.approx(SAMPLE_S) and fine.time[0] == 0.0
+    assert [s["step"] for s in fine.metadata["preprocessing"]] == ["lowpass", "resample"]
+    mid = slice(40, -40)  # away from the filter's ends
+    t = fine.time[mid]
+    basis = np.stack([np.sin(2 * np.pi * t), np.cos(2 * np.pi * t), np.sin(2 * np.pi * 8.0 * t),
+                      np.cos(2 * np.pi * 8.0 * t)], axis=1)
+    (s1, c1, s8, c8), *_ = np.linalg.lstsq(basis, fine.outputs[mid, 0], rcond=None)
+    assert 0.95 < s1 <= 1.0 and abs(c1) < 1e-3 and np.hypot(s8, c8) < 0.05
+    np.testing.assert_allclose(fine.outputs[mid, 1], 0.1 * t, atol=1e-6)
+    np.testing.assert_allclose(fine.inputs[mid], np.sin(2 * np.pi * 0.5 * t)[:, None] * np.ones(4), atol=1e-3)
 
 
 def test_prepare_and_identify_reproduce_the_paper_training_flight(shared_data, tmp_path):

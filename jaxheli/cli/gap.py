@@ -16,7 +16,7 @@ from ..gap.diagnose import diagnose, ranking_table, write_diagnosis
 from ..gap.fit_effect import MAX_STEPS
 from ..gap.predictor import RESTART, RESTARTS, SEGMENT
 from ..gap.significance import MIN_SHRINK
-from ..gap.prepare import prepare
+from ..gap.prepare import SAMPLE_S, prepare
 from ..model import G_SI
 from ._options import (add_data_option, add_flight_option, add_load_options, add_quiet_option, add_sim_options,
                        finding_line, outputs, read_flight, sim_options)
@@ -90,6 +90,10 @@ def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                    help="drop this many samples at each end of the training flight")
     p.add_argument("--train-lowpass", type=float, default=None, help="zero-phase low-pass of the training flight, Hz")
     p.add_argument("--train-dt", type=float, default=None, help="resample the training flight to this step, s")
+    p.add_argument("--dt", type=float, default=SAMPLE_S,
+                   help="step both flights are diagnosed at, s: one sampled faster is low-passed (zero-phase, at 0.35 "
+                        "of the new rate) and resampled to it (default %(default)g: thresholds.json, the step of the "
+                        "flights the thresholds were set on; 0: each flight at its own step)")
     add_load_options(p)
     add_quiet_option(p)
     p.set_defaults(func=_cmd_diagnose)
@@ -187,12 +191,13 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     diagnosis = diagnose(
         args.model, train, validate, outputs=outputs(args.outputs), effects=chosen, segment=args.segment,
         restart=args.restart, top=args.top, g=args.g, max_steps=args.max_steps, min_shrink=args.min_shrink,
-        track=args.track, joint=not args.frozen_base,
+        track=args.track, joint=not args.frozen_base, dt=args.dt or None,
     )
     found = diagnosis.attribution
+    steps = " and ".join(dict.fromkeys(f"{f.dt:.4g}" for f in diagnosis.flights.values()))
     print(f"diagnosis of {args.model}: trained on {train.source}, validated on {validate.source} "
-          f"(segment {args.segment:g} s, restart {args.restart}, restart filter level {found.track:g}; "
-          f"channels {','.join(diagnosis.outputs)})")
+          f"(step {steps} s, segment {args.segment:g} s, restart {args.restart}, restart filter level "
+          f"{found.track:g}; channels {','.join(diagnosis.outputs)})")
     for line in ranking_table(diagnosis):
         print(line)
     print(f"verdict: {found.verdict}")

@@ -37,6 +37,7 @@ from .compare import frequency_comparison, localise_prediction
 from .localisation_record import Localisation
 from .fit_effect import MAX_STEPS, effect_eta as effect_eta
 from .predictor import RESTART, SEGMENT, Predictor, make_predictor, smooths
+from .prepare import SAMPLE_S, at_step
 from .ranking import diagnose_effects, predictor_pair
 from .records import Diagnosis, Entry, FlightSummary, Gap
 from .significance import MIN_SHRINK
@@ -92,6 +93,7 @@ def diagnose(
     bounds: Bounds | None = None,
     max_steps: int = MAX_STEPS,
     min_shrink: float = MIN_SHRINK,
+    dt: float | None = SAMPLE_S,
 ) -> Diagnosis:
     """The diagnosis of ``model`` (anything :func:`jaxheli.resolve_params` takes).
 
@@ -100,7 +102,9 @@ def diagnose(
     ``max_steps`` and ``min_shrink``); ``segment`` (s) is the restart interval of every prediction, ``restart``
     where it restarts (:data:`~jaxheli.gap.predictor.RESTARTS`) and ``track`` the restart filter's level (``None``:
     tuned on ``train``). ``outputs`` default to :func:`shared_outputs`; ``localise_train`` localises the training
-    flight's gap too.
+    flight's gap too. A flight sampled faster than ``dt`` (s; default the thresholds' step, that of the flights they
+    were set on) is low-passed and resampled to it first (:func:`~jaxheli.gap.prepare.at_step`; ``None``: each at
+    its own step).
     """
     smooth = smooths(restart, "diagnose")
     theta = resolve_params(model)
@@ -118,7 +122,7 @@ def diagnose(
         if flat:
             raise ValueError(f"{flight.source} ({role} flight): output channel(s) {flat} are constant; leave "
                              f"them out of outputs")
-    train, validate = train.select(names), validate.select(names)
+    train, validate = (at_step(f.select(names), dt) for f in (train, validate))
     with stage("consistency check of both flights") as now:
         consistency = tuple({**f.to_json(), "flight": role}
                             for role, flight in (("train", train), ("validate", validate)) for f in check(flight))

@@ -7,6 +7,15 @@ from __future__ import annotations
 from ..data.flight import FlightData
 from ..data.preprocess import lowpass, resample, trim
 from .consistency import check, correct
+from .thresholds import THRESHOLDS
+
+SAMPLE_S = THRESHOLDS.sample_s
+"""The step the diagnosis runs at (s; from the thresholds file): that of the flights its thresholds were set on."""
+
+_CUTOFF = 0.35
+"""Low-pass cutoff before a flight is brought to a coarser step, as a fraction of the new sample rate (0.7 of its
+Nyquist frequency: the forward-backward order-4 pass keeps about 95 % of the amplitude at half the Nyquist frequency
+and 3 % at it)."""
 
 
 def prepare(
@@ -29,3 +38,11 @@ def prepare(
     if lowpass_hz:
         flight = lowpass(flight, lowpass_hz)
     return resample(flight, dt) if dt else flight
+
+
+def at_step(flight: FlightData, dt: float | None = SAMPLE_S) -> FlightData:
+    """``flight`` at the step ``dt`` (s): unchanged when it is sampled at ``dt`` or slower (or ``dt`` is ``None``),
+    else low-passed at ``0.35 / dt`` Hz (zero-phase, inputs too) and resampled to ``dt``."""
+    if dt is None or flight.dt >= dt * (1 - 1e-6):
+        return flight
+    return resample(lowpass(flight, _CUTOFF / dt), dt)

@@ -45,8 +45,9 @@ class Protocol:
 @dataclasses.dataclass(frozen=True)
 class Thresholds:
     """The diagnosis's significance rules (see :mod:`jaxheli.gap.significance` and :mod:`jaxheli.gap.reference`
-    for what each does), its predictions' default restart and segment (:mod:`jaxheli.gap.predictor`) and the blind
-    check's :class:`Protocol`; ``source`` is the file they came from."""
+    for what each does), its predictions' default restart and segment (:mod:`jaxheli.gap.predictor`), the step it
+    runs at (:mod:`jaxheli.gap.prepare`) and the blind check's :class:`Protocol`; ``source`` is the file they came
+    from."""
 
     min_shrink: float
     min_z: float
@@ -60,6 +61,7 @@ class Thresholds:
     left_box: float
     restart: str
     segment_s: float
+    sample_s: float
     protocol: Protocol
     source: str
 
