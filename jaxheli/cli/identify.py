@@ -12,6 +12,7 @@ from ..cost import SEARCH_COSTS
 from ..flights import DEFAULT_DATA
 from ..bounds import BOXES, named_box
 from ..identify import METHODS, PRIOR_SD
+from ..optim.frequency_fit import MAX_STEPS as FREQ_STEPS, STARTS as FREQ_STARTS
 from ..optim.polish import POLISH_OBJECTIVES
 from ._options import (add_data_option, add_flight_option, add_load_options, add_quiet_option, add_sim_options,
                        outputs, read_flight, sim_options)
@@ -62,12 +63,13 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     p.add_argument("--prior-sd", type=float, default=PRIOR_SD, metavar="PCT",
                    help=f"the prior's standard deviation, %% of each value, floored at 1 %% of the parameter's "
                         f"physical range (default {PRIOR_SD:g})")
-    p.add_argument("--freq-starts", type=int, default=8, metavar="K",
-                   help="freq: Levenberg-Marquardt starts, the best of --freq-screen draws in the box (default 8)")
+    p.add_argument("--freq-starts", type=int, default=FREQ_STARTS, metavar="K",
+                   help="freq: Levenberg-Marquardt starts, the best of --freq-screen draws in the box (default "
+                        "%(default)s)")
     p.add_argument("--freq-screen", type=int, default=2000, metavar="S",
                    help="freq: points drawn in the box and scored on J to choose the starts (default 2000)")
-    p.add_argument("--freq-steps", type=int, default=200, metavar="N",
-                   help="freq: Levenberg-Marquardt step limit of each start (default 200)")
+    p.add_argument("--freq-steps", type=int, default=FREQ_STEPS, metavar="N",
+                   help="freq: Levenberg-Marquardt step limit of each start (default %(default)s)")
     p.add_argument("--freq-band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                    help="freq: fitted band, Hz (default 0.1 Hz to a third of Nyquist, at most 10 Hz)")
     add_sim_options(p)
