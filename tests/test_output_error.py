@@ -7,7 +7,8 @@ import pytest
 from jaxheli.bounds import Bounds
 from jaxheli.identify import scores
 from jaxheli.model import R50_SI, TABLE2, build_ab, params_array
-from jaxheli.optim.output_error import GROWTH, LADDER, SEGMENTS, output_error_problem, restart_interval
+from jaxheli.optim.output_error import (GROWTH, LADDER, RACE_STEPS, SEGMENTS, output_error, output_error_problem,
+                                       restart_interval)
 from jaxheli.optim.pem import residuals
 from jaxheli.optim.polish import polish
 from jaxheli.optim.uncertainty import cramer_rao_coverage, standard_errors
@@ -102,3 +103,19 @@ def test_cramer_rao_coverage_counts_identifiable_parameters_within_k_errors():
     cov = cramer_rao_coverage(Unc(), truth)
     assert cov["identifiable"] == ["Xu", "Xa"] and cov["within"] == ["Xu"] and cov["fraction"] == 0.5
     np.testing.assert_allclose([cov["z"]["Xu"], cov["z"]["Xa"]], [-2.5, -3.5])
+
+
+def test_several_starts_race_and_the_leader_alone_finishes_the_round(flight):
+    """Two starts, one near the truth and one far: each takes RACE_STEPS steps, the round goes on from the one of
+    least sum of squares alone, and the answer is never worse than either after the race."""
+    rng = np.random.default_rng(1)
+    near, far = (np.where(Bounds().free_mask(), TABLE2 * (1 + rng.uniform(-f, f, 40)), TABLE2) for f in (0.1, 0.4))
+    problem = make_problem(flight)
+    res = output_error(problem, np.stack([far, near]), rounds=1, max_steps=RACE_STEPS + 5)
+    (round_,) = res.settings["rounds"]
+    far_rss, near_rss = round_["starts_rss"]
+    assert near_rss < far_rss and res.rss <= near_rss
+    np.testing.assert_array_equal(res.theta_start, near)
+    alone = output_error(problem, near, rounds=1, max_steps=RACE_STEPS)  # the race's leg of the near start
+    assert near_rss == pytest.approx(alone.rss, rel=1e-9)
+    assert res.n_steps <= RACE_STEPS + 5  # the far start's race leg is not counted
