@@ -6,7 +6,7 @@ import numpy as np
 
 from jaxheli.bounds import Bounds
 from jaxheli.gap.records import Structure
-from jaxheli.gap.structure import held_box, moved, physical_box
+from jaxheli.gap.structure import physical_box
 from jaxheli.model import LOWER, PARAM_NAMES, PINNED, UPPER, WIDE_LOWER, WIDE_UPPER
 
 
@@ -26,31 +26,3 @@ def test_structure_summary_names_what_left_the_box():
                   np.zeros(40), {})
     assert s.summary == "Nw freed (2.71), Mu beyond its bound (-0.18 past -0.1)"
     assert Structure.from_json(s.to_json()).summary == s.summary
-    held = Structure(30.0, 9.0, True, 0.1, 0.07, {"u": 0.05}, {"Nw": 2.0}, {}, {}, np.zeros(40), {}, ("Xu", "Yv"))
-    assert held.summary == "Nw freed (2); Xu, Yv held in the box (they ran to the end of their physical range)"
-    old = {k: v for k, v in s.to_json().items() if k != "at_limit"}  # a file written before the field was
-    assert Structure.from_json(old).at_limit == () and Structure.from_json(held.to_json()).at_limit == ("Xu", "Yv")
-
-
-def test_a_parameter_at_the_end_of_its_physical_range_is_held_in_the_box():
-    """Of the parameters a widened re-fit moved out of the authors' box, those at the end of the physical range (to
-    a thousandth of it) are at their limit, one short of it is not; the box the hypothesis is re-fitted in then keeps
-    them within the authors' bounds (a pinned one pinned) and leaves every other parameter its physical range."""
-    box, wide = Bounds(), physical_box(Bounds())
-    i = {n: PARAM_NAMES.index(n) for n in ("Xu", "Yv", "Nw")}
-    middle = 0.5 * (np.asarray(LOWER) + np.asarray(UPPER))
-    theta = middle.copy()
-    theta[i["Xu"]] = WIDE_LOWER[i["Xu"]]  # beyond its bound, at the physical limit
-    theta[i["Yv"]] = WIDE_LOWER[i["Yv"]] + 0.01 * (WIDE_UPPER - WIDE_LOWER)[i["Yv"]]  # beyond, short of the limit
-    theta[i["Nw"]] = 3.96  # freed
-    freed, beyond, crossed, limit = moved(theta, box, wide)
-    assert set(freed) == {"Nw"} and set(beyond) == {"Xu", "Yv"} and limit == ("Xu",)
-    assert crossed["Xu"] == LOWER[i["Xu"]]
-    theta[i["Nw"]] = WIDE_UPPER[i["Nw"]]
-    assert moved(theta, box, wide)[3] == ("Xu", "Nw")
-    assert moved(middle, box, wide) == ({}, {}, {}, ())
-    kept = held_box(box, wide, ("Xu", "Nw"))
-    for name, j in i.items():
-        source = box if name in ("Xu", "Nw") else wide
-        assert (kept.lower[j], kept.upper[j]) == (source.lower[j], source.upper[j]), name
-    assert kept.lower[i["Nw"]] == kept.upper[i["Nw"]] == 0.0

@@ -65,11 +65,9 @@ def _json(record: Any) -> dict[str, Any] | None:
 
 
 def _read(cls: type, data: Mapping[str, Any], **given: Any) -> Any:
-    """The record ``cls`` of JSON ``data``: the fields ``given``, the others read by their type (:data:`_READ`); a
-    field with a default that ``data`` lacks (a file written before the field was) takes the default."""
+    """The record ``cls`` of JSON ``data``: the fields ``given``, the others read by their type (:data:`_READ`)."""
     return cls(**{f.name: given[f.name] if f.name in given else _READ[f.type](data[f.name])
-                  for f in dataclasses.fields(cls)
-                  if f.name in given or f.name in data or f.default is dataclasses.MISSING})
+                  for f in dataclasses.fields(cls)})
 
 
 class _Flat:

@@ -119,8 +119,7 @@ class Structure(_Flat):
     reference re-fitted alone in the physical ranges, its held-out shrink (%) of the yardstick's gap with standard
     error, whether it is ``significant``, both gaps (channel mean) and its gap per channel; the pinned parameters it
     ``freed`` and those ``beyond`` the box (values by name), with the bound each ``crossed``; the re-fitted
-    ``theta[40]`` and nuisance values; the parameters that ran to the end of their physical range in a first re-fit
-    and were held in the box for this one (``at_limit``)."""
+    ``theta[40]`` and nuisance values."""
 
     shrink_pct: float
     shrink_se_pct: float
@@ -133,17 +132,13 @@ class Structure(_Flat):
     crossed: Mapping[str, float]
     theta: Theta
     nuisance: Mapping[str, float]
-    at_limit: tuple[str, ...] = ()
 
     @property
     def summary(self) -> str:
-        """What moved, in words: ``"Nw freed (2.71), Mu beyond its bound (-0.18 past -0.1)"``, then ``"; Xu held in
-        the box (it ran to the end of its physical range)"`` where one was."""
+        """What moved, in words: ``"Nw freed (2.71), Mu beyond its bound (-0.18 past -0.1)"``."""
         moved = [f"{n} freed ({v:.3g})" for n, v in self.freed.items()]
         moved += [f"{n} beyond its bound ({v:.3g} past {self.crossed[n]:.3g})" for n, v in self.beyond.items()]
-        held = (f"; {', '.join(self.at_limit)} held in the box ({'it' if len(self.at_limit) == 1 else 'they'} ran to "
-                f"the end of {'its' if len(self.at_limit) == 1 else 'their'} physical range)") if self.at_limit else ""
-        return (", ".join(moved) or "no parameter left the box") + held
+        return ", ".join(moved) or "no parameter left the box"
 
 
 @dataclasses.dataclass(frozen=True)

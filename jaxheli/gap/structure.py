@@ -7,14 +7,7 @@ and ``Mu``, ``Mv``, ``Nv`` beyond its bounds) leaves a gap that some candidate e
 coupling from collective to yaw rate for the missing ``Nw w``). The widened re-fit is scored on the validation flight
 against the yardstick (:func:`~jaxheli.gap.significance.yardstick`) like a candidate; it is significant at a shrink of
 ``min_shrink`` % and :data:`~jaxheli.gap.significance.SIG_SIGMA` standard errors *and* when a parameter left the box:
-a shrink without that is the box's own re-fit converging further, not its structure. A parameter the widened re-fit
-takes to the end of its physical range is not a helicopter's structure but a stand-in for something the model lacks, as
-an effect at its bound is (:func:`~jaxheli.effects.registry.at_bound`): the hypothesis is re-fitted with those
-parameters held in the box (``at_limit``) and judged on what is left; the effects are still ranked again beyond it in
-the whole physical ranges (:func:`~jaxheli.gap.ranking.staged`), the stricter test. On the independent
-simulator's drag flights (a truth inside the box) the re-fit took ``Xu`` and ``Yv`` to -3 1/s, the physical bound, for
-the drag's linear part in a wind, and was named before the drag (5 of 10 drag trials on test seeds 5080-5089); on a
-Table 2 flight with ``Nw`` 2 it freed ``Nw`` and took ``Ac`` and ``Dlat`` to their ends (``tests/test_diagnose.py``)."""
+a shrink without that is the box's own re-fit converging further, not its structure."""
 
 from __future__ import annotations
 
@@ -24,7 +17,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._progress import note, stage
-from .._types import Float
 from ..bounds import Bounds, physical_box
 from ..effects.plant import no_effect
 from ..model import PARAM_NAMES, WIDE_LOWER, WIDE_UPPER
@@ -38,8 +30,7 @@ from .thresholds import THRESHOLDS
 LEFT_BOX = THRESHOLDS.left_box
 """Fraction of a parameter's physical range (:data:`~jaxheli.model.WIDE_LOWER` to
 :data:`~jaxheli.model.WIDE_UPPER`) by which a widened re-fit must leave the box for that parameter to count as
-freed or beyond its bound (a solver's last step across a bound is not structure), and within which of the range's
-end it sits at its physical limit."""
+freed or beyond its bound (a solver's last step across a bound is not structure)."""
 
 
 def structure_hypothesis(
@@ -57,15 +48,8 @@ def structure_hypothesis(
     base = jnp.asarray(no_effect(outputs))
     reference = dataclasses.replace(reference, start=scored.fit.z[:1])
     with stage(f"structure hypothesis: the reference re-fitted in the physical ranges ({REFERENCE_STEPS * max_steps} "
-               "LM steps a round)") as now:
+               "LM steps a round)"):
         fit = refit_alone(train, scored.fit.theta[0], reference, REFERENCE_STEPS * max_steps, wide)
-        limit = moved(np.asarray(fit.theta[0], np.float64), box, wide)[3]
-        if limit:
-            note(f"structure hypothesis: {', '.join(limit)} ran to the end of the physical range; re-fitted with "
-                 f"{'it' if len(limit) == 1 else 'them'} held in the box")
-            fit = refit_alone(train, scored.fit.theta[0], reference, REFERENCE_STEPS * max_steps,
-                              held_box(box, wide, limit))
-            now.outcome = f"{', '.join(limit)} held in the box"
         gap, energy = (np.asarray(a)[0] for a in score(validate, fit.theta, embed(base, reference.index[0],
                                                                                      fit.z[0])[None]))
     yard = credited.take(0)
@@ -73,7 +57,13 @@ def structure_hypothesis(
     shrink = 100.0 * (gap_yard - float(np.mean(gap))) / gap_yard
     se = paired_se(yard.energy, energy, float(np.sum(yard.energy)))
     theta = np.asarray(fit.theta[0], np.float64)
-    freed, beyond, crossed, _ = moved(theta, box, wide)
+    lower, upper = np.asarray(box.lower, np.float64), np.asarray(box.upper, np.float64)
+    tol = LEFT_BOX * (WIDE_UPPER - WIDE_LOWER)
+    below, above = theta < lower - tol, theta > upper + tol
+    pinned = lower == upper
+    freed = {n: float(v) for n, v, p, out in zip(PARAM_NAMES, theta, pinned, below | above) if p and out}
+    beyond = {n: float(v) for n, v, p, out in zip(PARAM_NAMES, theta, pinned, below | above) if out and not p}
+    crossed = {n: float(lower[i] if below[i] else upper[i]) for i, n in enumerate(PARAM_NAMES) if n in beyond}
     hypothesis = Structure(
         shrink_pct=shrink,
         shrink_se_pct=se,
@@ -86,35 +76,7 @@ def structure_hypothesis(
         crossed=crossed,
         theta=theta,
         nuisance=fitted_nuisance(np.asarray(fit.z[0]), outputs),
-        at_limit=limit,
     )
     note(f"structure hypothesis: {hypothesis.summary}; shrinks the held-out gap {shrink:.1f} +- {se:.1f} % "
          f"({'significant' if hypothesis.significant else 'not significant'})")
     return hypothesis
-
-
-def moved(
-    theta: Float[np.ndarray, "40"], box: Bounds, wide: Bounds,
-) -> tuple[dict[str, float], dict[str, float], dict[str, float], tuple[str, ...]]:
-    """What a re-fit ``theta`` in ``wide`` did with ``box``: the pinned parameters it freed and those beyond a bound
-    (values by name; each more than :data:`LEFT_BOX` of its physical range out), the bound each crossed, and the names
-    of those within :data:`LEFT_BOX` of ``wide``'s end (at their physical limit)."""
-    lower, upper = np.asarray(box.lower, np.float64), np.asarray(box.upper, np.float64)
-    tol = LEFT_BOX * (WIDE_UPPER - WIDE_LOWER)
-    below, above = theta < lower - tol, theta > upper + tol
-    pinned = lower == upper
-    freed = {n: float(v) for n, v, p, out in zip(PARAM_NAMES, theta, pinned, below | above) if p and out}
-    beyond = {n: float(v) for n, v, p, out in zip(PARAM_NAMES, theta, pinned, below | above) if out and not p}
-    crossed = {n: float(lower[i] if below[i] else upper[i]) for i, n in enumerate(PARAM_NAMES) if n in beyond}
-    ends = zip(PARAM_NAMES, theta, np.asarray(wide.lower), np.asarray(wide.upper), tol)
-    limit = tuple(n for n, v, lo, hi, t in ends if (n in freed or n in beyond) and min(v - lo, hi - v) <= t)
-    return freed, beyond, crossed, limit
-
-
-def held_box(box: Bounds, wide: Bounds, names: tuple[str, ...]) -> Bounds:
-    """``wide`` with the parameters ``names`` held in ``box`` (their bounds, or their pinned value, as ``box`` has
-    them)."""
-    held = np.isin(PARAM_NAMES, names)
-    return Bounds(np.where(held, np.asarray(box.lower), np.asarray(wide.lower)),
-                  np.where(held, np.asarray(box.upper), np.asarray(wide.upper)))
-
