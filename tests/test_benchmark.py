@@ -29,7 +29,7 @@ def test_flop_count_is_dominated_by_the_recurrence():
 def test_quick_bench_writes_json_markdown_and_plot(tmp_path):
     # In a process of its own, as a user runs it: late in a full `-n 2` suite run, XLA's compile of the IWO
     # chunk segfaulted in a worker that had compiled many other programs (not reproduced in a fresh process).
-    run = subprocess.run([sys.executable, "-m", "jaxheli", "bench", "--quick", "--host-devices", "1", "--out",
+    run = subprocess.run([sys.executable, "-m", "jaxheli", "bench", "--quick", "--host-devices", "2", "--out",
                           str(tmp_path)], capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr[-3000:]
     result = json.loads((tmp_path / "bench.json").read_text())
@@ -44,11 +44,14 @@ def test_quick_bench_writes_json_markdown_and_plot(tmp_path):
     assert pem_row["numpy_simulations"] == pem_row["steps"] * 36  # 35 free parameters + 1
     assert iwo_row["method"] == "iwo+polish" and iwo_row["samples"] == 300 and iwo_row["numpy_ratio"] > 0
     assert set(iwo_row["fit_percent"]) >= {"p", "q", "phi", "theta"} and all(r["seconds"] > 0 for r in (pem_row, iwo_row))
+    # each in a fresh process with JAX's default devices, not the bench's --host-devices
+    assert pem_row["devices"] == iwo_row["devices"] == 1 and iwo_row["numpy_simulations"] > 0
     costs = result["costs"]
     assert costs["N"] == 300 and costs["P"] == 40 and len(costs["rows"]) == 5
     assert costs["rows"][0]["ratio"] == 1.0 and all(r["rate"] > 0 for r in costs["rows"])
     assert any("Tischler" in r["cost"] for r in costs["rows"]) and any("5 s runs" in r["cost"] for r in costs["rows"])
     text = (tmp_path / "bench.md").read_text()
     assert "blocked x NumPy" in text and "paper's whole experiment" in text and "Time to a model" in text
+    assert "Each method in a fresh process" in text
     assert "Costs the engines minimise" in text
     assert (tmp_path / "throughput.png").stat().st_size > 10_000

@@ -42,6 +42,9 @@ def markdown(result: dict) -> str:
         lines += [f"| {r['cost']} | {r['rate']:.0f} | {r['ratio']:.2f} |" for r in c["rows"]]
     if result.get("time_to_model"):
         lines += ["", "## Time to a model (compilation included)", "",
+                  "Each method in a fresh process, as `jaxheli identify` runs: JAX's default devices "
+                  f"({', '.join(sorted({str(r.get('devices', '?')) for r in result['time_to_model']}))}), "
+                  "nothing compiled before it, no persistent cache.", "",
                   "| method | samples | s (measured) | NumPy loop s (estimated) | ratio | fit % p / q / phi / theta |",
                   "|---|---|---|---|---|---|"]
         for r in result["time_to_model"]:
@@ -52,7 +55,7 @@ def markdown(result: dict) -> str:
         if any("numpy_seconds" in r and r["method"].startswith("iwo") for r in result["time_to_model"]):
             lines += ["", "IWO's NumPy loop: the candidates IWO scored, at the loop's rate measured in this run (an "
                           "estimate, not a run; the frequency fit and the polish are not counted in it)."]
-        if any("numpy_simulations" in r for r in result["time_to_model"]):
+        if any("numpy_simulations" in r and r["method"] == "pem" for r in result["time_to_model"]):
             lines += ["", "PEM's NumPy loop: a forward-difference Jacobian per step, steps x (free parameters + 1) "
                           "simulations at the loop's measured rate (an estimate, not a run)."]
     if result.get("scaling"):
