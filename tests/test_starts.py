@@ -26,7 +26,10 @@ def test_start_rows_try_the_axes_together_where_asked_then_each_alone():
     mis = effects.start_rows("sensor_misalignment", OUT)  # the IMU's yaw alone at +-0.1 rad
     np.testing.assert_array_equal(mis[:, 0], [0.0, 0.1, -0.1])
     np.testing.assert_array_equal(mis[:, 1:], 0.0)
-    for name in ("output_bias_drift", "process_noise", "rotor_speed_coupling"):
+    noise = effects.start_rows("process_noise", OUT)  # the gusts' correlation time also from 3 s
+    ps = effects.params("process_noise", OUT)
+    np.testing.assert_array_equal(noise, [[p.start for p in ps], [3.0 if p.name == "gust_tau" else p.start for p in ps]])
+    for name in ("output_bias_drift", "rotor_speed_coupling"):
         ps = effects.params(name, OUT)
         np.testing.assert_array_equal(effects.start_rows(name, OUT), [[p.start for p in ps]])
 
