@@ -56,7 +56,7 @@ def time_to_model(
     for method in methods:
         args = (flight, method, iterations, pem_steps, seed)
         if fresh:
-            with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+            with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"), initializer=_float64) as pool:
                 row = pool.submit(_timed, *args).result()
         else:
             row = _timed(*args)
@@ -70,12 +70,18 @@ def time_to_model(
     return rows
 
 
-def _timed(flight: FlightData, method: str, iterations: int, pem_steps: int, seed: int) -> dict[str, Any]:
-    """One method's row of :func:`time_to_model` (float64, as the command line runs), with ``simulations``: the
-    NumPy loop's work for the same model (``None`` where not counted)."""
+def _float64() -> None:
+    """A fresh process's set-up: float64, as the command line runs."""
     import jax
 
     jax.config.update("jax_enable_x64", True)
+
+
+def _timed(flight: FlightData, method: str, iterations: int, pem_steps: int, seed: int) -> dict[str, Any]:
+    """One method's row of :func:`time_to_model` in this process's precision, with ``simulations``: the NumPy loop's
+    work for the same model (``None`` where not counted)."""
+    import jax
+
     start = time.perf_counter()
     if method == "pem":
         fit = pem(flight, max_steps=pem_steps)

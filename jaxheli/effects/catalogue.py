@@ -174,7 +174,8 @@ not follow the sensors as closely as at the base model's tuned level). The cut i
 the effect is credited for the gusts alone, not for re-tuning the filter. A further start at a correlation time of 3 s:
 from 1 s alone, the joint fit left both gust parameters at their starts on 3 of the independent simulator's Dryden
 design seeds 70-79 (70, 71, 77; held-out shrink 0.7, 4.8, 4.0 %), where the 3-s start, kept by its lower training RSS,
-reached 12.0, 10.7 and 5.1 %. No plant term: the wind enters every plant
+reached 12.0, 10.7 and 5.1 %. On held-out seeds it did not pay (README: 44 against 45 of 75 detectable trials on the
+same seeds). No plant term: the wind enters every plant
 through ``E``; :func:`jaxheli.gap.kalman.gust_filter` reads this group. Injected: a flight in gusts of 0.3-0.8 m/s
 with 0.5-2 s correlation."""
 
