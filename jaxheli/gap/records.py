@@ -87,7 +87,8 @@ class Refit:
     held-out shrink (%) of the given base's gap with standard error, both gaps (channel mean) and its gap per
     channel, whether the given base is ``under_fitted``, the solver's flag, ``progress_pct`` (how far its training
     RSS still fell over the candidates' budget), ``settled``, LM ``steps``, the re-fitted ``theta[40]`` and
-    nuisance values."""
+    nuisance values; ``challenged``: a candidate's base parameters gave the reference a better basin
+    (:func:`~jaxheli.gap.reference.challenge`)."""
 
     shrink_pct: float
     shrink_se_pct: float
@@ -101,6 +102,7 @@ class Refit:
     steps: int
     theta: Theta
     nuisance: Mapping[str, float]
+    challenged: bool = False
 
     def to_json(self) -> dict[str, Any]:
         """``{"joint": True, ...}`` as ``jaxheli diagnose`` writes it (a frozen base, no re-fit, writes
@@ -109,8 +111,11 @@ class Refit:
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Refit | None:
-        """The inverse of :meth:`to_json` (``None`` for a frozen base)."""
-        return _read(cls, data) if data["joint"] else None
+        """The inverse of :meth:`to_json` (``None`` for a frozen base; records written before the challenge's
+        flag read as unchallenged)."""
+        if not data["joint"]:
+            return None
+        return _read(cls, data, challenged=bool(data.get("challenged", False)))
 
 
 @dataclasses.dataclass(frozen=True)

@@ -54,13 +54,15 @@ class Scored(NamedTuple):
     (:func:`~jaxheli.gap.ranking.fit_and_score`).
 
     Row 0 of ``fit`` and of ``rows`` is the reference, row ``c + 1`` the candidate ``c``; ``given`` scores the given
-    base model; ``rss_start`` is the reference's training RSS where the candidates started (``None``: frozen base).
+    base model; ``rss_start`` is the reference's training RSS where the candidates started (``None``: frozen base);
+    ``moved``: a challenger's base parameters replaced the reference (:func:`challenge`).
     """
 
     fit: EffectFit
     given: HeldOut
     rows: HeldOut
     rss_start: float | None
+    moved: bool = False
 
 
 def theta_box(theta: Float[ArrayLike, "40"], bounds: Bounds | None = None) -> Bounds:
@@ -131,7 +133,7 @@ def challenge(
     gap, energy = scored.rows.gap.copy(), scored.rows.energy.copy()
     gap[0], energy[0] = g[0], e[0]
     return Scored(jax.tree.map(lambda a, b: a.at[0].set(b[0]), fit, best), scored.given, HeldOut(gap, energy),
-                  scored.rss_start - gain)
+                  scored.rss_start - gain, moved=True)
 
 
 def best_rows(rss: Float[np.ndarray, "R"], owner: np.ndarray, size: Float[np.ndarray, "R"] | None = None) -> np.ndarray:
@@ -175,6 +177,7 @@ def base_refit(scored: Scored, outputs: tuple[str, ...], min_shrink: float) -> R
         steps=int(fit.steps[0]),
         theta=np.asarray(fit.theta[0], np.float64),
         nuisance=fitted_nuisance(np.asarray(fit.z[0]), outputs),
+        challenged=scored.moved,
     )
 
 
