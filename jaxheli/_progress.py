@@ -72,6 +72,11 @@ def reporting(on: bool = True) -> Iterator[None]:
         _ACTIVE = outer
 
 
+def active() -> bool:
+    """Whether a :func:`reporting` block is on here (e.g. to turn it on in a process this one starts)."""
+    return _ACTIVE is not None
+
+
 def note(message: str) -> None:
     """Write ``message`` as one progress line, when :func:`reporting` is on."""
     if _ACTIVE is not None:

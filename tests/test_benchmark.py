@@ -46,6 +46,9 @@ def test_quick_bench_writes_json_markdown_and_plot(tmp_path):
     assert set(iwo_row["fit_percent"]) >= {"p", "q", "phi", "theta"} and all(r["seconds"] > 0 for r in (pem_row, iwo_row))
     # each in a fresh process with JAX's default devices, not the bench's --host-devices
     assert pem_row["devices"] == iwo_row["devices"] == 1 and iwo_row["numpy_simulations"] > 0
+    # the fresh processes report their stages as the bench does: the user is told what is being timed
+    assert "time to a model: iwo+polish in a fresh process" in run.stderr
+    assert "polish" in run.stderr.split("time to a model: iwo+polish")[1]
     costs = result["costs"]
     assert costs["N"] == 300 and costs["P"] == 40 and len(costs["rows"]) == 5
     assert costs["rows"][0]["ratio"] == 1.0 and all(r["rate"] > 0 for r in costs["rows"])

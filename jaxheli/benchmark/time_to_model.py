@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
+from .._progress import active, note, reporting
 from ..data.flight import FlightData
 from ..identify import identify
 from ..io import load
@@ -39,12 +40,15 @@ def time_to_model(
     numpy_rate: float | None = None,
     seed: int = 0,
     fresh: bool = True,
+    progress: bool | None = None,
 ) -> list[dict]:
     """Identify ``flight`` once per method, timed end to end (compilation included): ``"pem"``
     (:func:`jaxheli.pem`, ``pem_steps`` Levenberg-Marquardt steps from the middle of the box) and any
     :func:`jaxheli.identify` method (one trial, ``iterations`` generations for the population engines, the
     default polish, standard errors and scores included: what a user waits for). With ``fresh`` each method runs in
-    a new process (see the module); else in this one, after whatever it compiled before.
+    a new process (see the module); else in this one, after whatever it compiled before. ``progress``: the run
+    writes its stages' progress lines (:mod:`jaxheli._progress`; ``None``: when this process does, so a fresh
+    process reports as the bench that started it).
 
     Each row: method, seconds, the JAX devices it ran on, the model's training fit % and Pearson per channel
     (``identify``'s methods) or its sum of squares and steps (PEM), and the seconds the per-candidate NumPy loop at
@@ -52,9 +56,11 @@ def time_to_model(
     the candidates the run scored; for PEM on a forward-difference Jacobian per step, ``steps x (free parameters +
     1)`` simulations (an estimate from the measured rate, not a run).
     """
+    progress = active() if progress is None else progress
     rows = []
     for method in methods:
-        args = (flight, method, iterations, pem_steps, seed)
+        note(f"time to a model: {method}" + (" in a fresh process" if fresh else ""))
+        args = (flight, method, iterations, pem_steps, seed, progress)
         if fresh:
             with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"), initializer=_float64) as pool:
                 row = pool.submit(_timed, *args).result()
@@ -77,9 +83,15 @@ def _float64() -> None:
     jax.config.update("jax_enable_x64", True)
 
 
-def _timed(flight: FlightData, method: str, iterations: int, pem_steps: int, seed: int) -> dict[str, Any]:
+def _timed(flight: FlightData, method: str, iterations: int, pem_steps: int, seed: int, progress: bool
+           ) -> dict[str, Any]:
     """One method's row of :func:`time_to_model` in this process's precision, with ``simulations``: the NumPy loop's
-    work for the same model (``None`` where not counted)."""
+    work for the same model (``None`` where not counted); with ``progress``, its stages' lines."""
+    with reporting(progress):
+        return _row(flight, method, iterations, pem_steps, seed)
+
+
+def _row(flight: FlightData, method: str, iterations: int, pem_steps: int, seed: int) -> dict[str, Any]:
     import jax
 
     start = time.perf_counter()

@@ -7,7 +7,7 @@ import json
 import os
 from pathlib import Path
 
-from ._options import OldForm, add_data_option, adopt_as_data
+from ._options import OldForm, add_data_option, add_quiet_option, adopt_as_data
 
 
 def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -39,6 +39,7 @@ def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     p.add_argument("--pem-steps", type=int, default=200, help="Levenberg-Marquardt steps of the timed PEM")
     p.add_argument("--quick", action="store_true", help="tiny settings (a smoke test, seconds)")
     p.add_argument("--out", default="results/bench", help="directory for bench.json, bench.md, throughput.png")
+    add_quiet_option(p)
     p.set_defaults(func=_cmd_bench)
     return p
 
