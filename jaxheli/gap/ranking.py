@@ -38,8 +38,8 @@ from .fit_effect import MAX_STEPS, EffectRows, embed, fit_candidates, score, wit
 from .predictor import Predictor, make_predictor, tune_track
 from .records import Attribution, Entry, Refit, Structure
 from .reference import (
-    REFERENCE_STEPS, Scored, base_refit, best_rows, carry_reference, challenge as challenge_reference, refit_alone,
-    theta_box, withhold,
+    REFERENCE_STEPS, Scored, base_refit, best_rows, carry_reference, challenge as challenge_reference, follow,
+    refit_alone, theta_box, withhold,
 )
 from .significance import MIN_SHRINK, HeldOut, shrink_entries, yardstick
 from .structure import physical_box, structure_hypothesis
@@ -86,7 +86,8 @@ def fit_and_score(
         fit, rows, cand = jax.tree.map(lambda a: a[keep], fit), rows.take(keep), jax.tree.map(lambda a: a[keep], cand)
     scored = Scored(fit, held.take(0), rows, rss_start)
     if box is not None and challenge:
-        scored = challenge_reference(train, validate, cand, scored, REFERENCE_STEPS * max_steps, box, challenge)
+        challenged = challenge_reference(train, validate, cand, scored, REFERENCE_STEPS * max_steps, box, challenge)
+        scored = follow(train, validate, cand, scored, challenged, max_steps, box)
     return scored
 
 

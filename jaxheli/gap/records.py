@@ -88,7 +88,8 @@ class Refit:
     channel, whether the given base is ``under_fitted``, the solver's flag, ``progress_pct`` (how far its training
     RSS still fell over the candidates' budget), ``settled``, LM ``steps``, the re-fitted ``theta[40]`` and
     nuisance values; ``challenged``: a candidate's base parameters gave the reference a better basin
-    (:func:`~jaxheli.gap.reference.challenge`)."""
+    (:func:`~jaxheli.gap.reference.challenge`), and ``followed``: how many candidate rows fitted better from it
+    (:func:`~jaxheli.gap.reference.follow`)."""
 
     shrink_pct: float
     shrink_se_pct: float
@@ -103,6 +104,7 @@ class Refit:
     theta: Theta
     nuisance: Mapping[str, float]
     challenged: bool = False
+    followed: int = 0
 
     def to_json(self) -> dict[str, Any]:
         """``{"joint": True, ...}`` as ``jaxheli diagnose`` writes it (a frozen base, no re-fit, writes
@@ -112,10 +114,10 @@ class Refit:
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Refit | None:
         """The inverse of :meth:`to_json` (``None`` for a frozen base; records written before the challenge's
-        flag read as unchallenged)."""
+        fields read as unchallenged)."""
         if not data["joint"]:
             return None
-        return _read(cls, data, challenged=bool(data.get("challenged", False)))
+        return _read(cls, data, challenged=bool(data.get("challenged", False)), followed=int(data.get("followed", 0)))
 
 
 @dataclasses.dataclass(frozen=True)

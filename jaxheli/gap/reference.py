@@ -55,7 +55,8 @@ class Scored(NamedTuple):
 
     Row 0 of ``fit`` and of ``rows`` is the reference, row ``c + 1`` the candidate ``c``; ``given`` scores the given
     base model; ``rss_start`` is the reference's training RSS where the candidates started (``None``: frozen base);
-    ``moved``: a challenger's base parameters replaced the reference (:func:`challenge`).
+    ``moved``: a challenger's base parameters replaced the reference (:func:`challenge`); ``followed``: how many
+    candidate rows then fitted better from its optimum (:func:`follow`).
     """
 
     fit: EffectFit
@@ -63,6 +64,7 @@ class Scored(NamedTuple):
     rows: HeldOut
     rss_start: float | None
     moved: bool = False
+    followed: int = 0
 
 
 def theta_box(theta: Float[ArrayLike, "40"], bounds: Bounds | None = None) -> Bounds:
@@ -136,6 +138,38 @@ def challenge(
                   scored.rss_start - gain, moved=True)
 
 
+def follow(
+    train: Predictor, validate: Predictor, cand: EffectRows, before: Scored, after: Scored, steps: int, box: Bounds,
+) -> Scored:
+    """``after`` (the reference challenged, :func:`challenge`) with the candidates given the basin the reference
+    moved to: when the challenge replaced the reference, every candidate row of ``cand`` is fitted again (``steps``
+    LM steps) from the new reference's base parameters and nuisance values, its effect values started where its
+    first fit ended, and keeps whichever of its two fits has the lower training RSS. A yardstick that escapes into a
+    better basin while the candidates stay in the old one takes from every candidate the credit it had for its
+    effect, and which candidate moved it decides the others' verdicts. ``before`` is the unchallenged score."""
+    if not after.moved or cand.index.shape[0] < 2:
+        return after
+    base = jnp.asarray(no_effect(train.outputs))
+    ref = jax.tree.map(lambda a: a[0], after.fit)
+    rows = jax.tree.map(lambda a: a[1:], carry_reference(dataclasses.replace(cand, start=before.fit.z), ref.z))
+    with stage(f"the {rows.index.shape[0]} candidate rows fitted again from the challenged reference's optimum "
+               f"({steps} LM steps each)") as now:
+        again = fit_candidates(train, ref.theta, base, rows, steps, box)
+        better = np.asarray(again.rss) < np.asarray(before.fit.rss[1:])
+        now.outcome = f"{int(np.sum(better))} of {better.size} rows fitted better"
+    if not np.any(better):
+        return after
+    keep = jnp.asarray(np.r_[False, better])
+    padded = jax.tree.map(lambda a, b: jnp.concatenate([a[:1], b]), after.fit, again)
+    fit = jax.tree.map(lambda new, old: jnp.where(keep.reshape((-1,) + (1,) * (old.ndim - 1)), new, old), padded,
+                       after.fit)
+    etas = jax.vmap(lambda i, z: embed(base, i, z))(rows.index, again.z)
+    g, e = (np.asarray(a) for a in score(validate, again.theta, etas))
+    gap, energy = after.rows.gap.copy(), after.rows.energy.copy()
+    gap[1:][better], energy[1:][better] = g[better], e[better]
+    return after._replace(fit=fit, rows=HeldOut(gap, energy), followed=int(np.sum(better)))
+
+
 def best_rows(rss: Float[np.ndarray, "R"], owner: np.ndarray, size: Float[np.ndarray, "R"] | None = None) -> np.ndarray:
     """Rows of a batched fit to keep: the reference (row 0), then for each candidate ``c`` the row among those
     ``owner`` gives it (``owner[r - 1]``, rows after the reference) of least training RSS ``rss``; with
@@ -178,6 +212,7 @@ def base_refit(scored: Scored, outputs: tuple[str, ...], min_shrink: float) -> R
         theta=np.asarray(fit.theta[0], np.float64),
         nuisance=fitted_nuisance(np.asarray(fit.z[0]), outputs),
         challenged=scored.moved,
+        followed=scored.followed,
     )
 
 
