@@ -77,8 +77,8 @@ def test_candidates_follow_a_reference_that_moved_to_a_better_basin(poor_basin):
     after = Scored(jax.tree.map(lambda a, b: a.at[0].set(b[0]), before.fit, better), before.given,
                    HeldOut(gap, energy), before.rss_start, moved=True)
 
-    assert follow(train, validate, cand, before, before, STEPS, box) is before
-    got = follow(train, validate, cand, before, after, STEPS, box)
+    assert follow(train, validate, cand, before, STEPS, box) is before
+    got = follow(train, validate, cand, after, STEPS, box)
     old, new = np.asarray(before.fit.rss), np.asarray(got.fit.rss)
     # the reference stays the challenger's; each candidate keeps the better of its two fits, here the new basin's
     assert new[0] == float(better.rss[0]) and got.moved and got.followed == 2 and base_refit(got, OUT, 5.0).followed == 2
@@ -91,7 +91,7 @@ def test_candidates_follow_a_reference_that_moved_to_a_better_basin(poor_basin):
     assert not np.allclose(got.rows.gap[1:], before.rows.gap[1:])
     # a challenge the candidates cannot gain from leaves them as they were
     worse = dataclasses.replace(before.fit, rss=before.fit.rss.at[1:].set(0.0))
-    same = follow(train, validate, cand, before._replace(fit=worse), after._replace(fit=jax.tree.map(
-        lambda a, b: a.at[0].set(b[0]), worse, better)), STEPS, box)
+    same = follow(train, validate, cand, after._replace(fit=jax.tree.map(lambda a, b: a.at[0].set(b[0]), worse,
+                                                                          better)), STEPS, box)
     np.testing.assert_array_equal(same.rows.gap, after.rows.gap)
     assert same.followed == 0

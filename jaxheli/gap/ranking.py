@@ -87,7 +87,7 @@ def fit_and_score(
     scored = Scored(fit, held.take(0), rows, rss_start)
     if box is not None and challenge:
         challenged = challenge_reference(train, validate, cand, scored, REFERENCE_STEPS * max_steps, box, challenge)
-        scored = follow(train, validate, cand, scored, challenged, max_steps, box)
+        scored = follow(train, validate, cand, challenged, max_steps, box)
     return scored
 
 
