@@ -15,5 +15,5 @@ from ._pilot import excitation as excitation, lqr_gain as lqr_gain
 from ._sensors import BiasWalk as BiasWalk, Imu as Imu, Quantiser as Quantiser, Vibration as Vibration, read as read
 from ._servo import Servo as Servo, ServoState as ServoState
 from ._trial import TruthTrial as TruthTrial, detectability as detectability, truth_trial as truth_trial
-from ._trial import detectability_ratio as detectability_ratio
+from ._trial import VALIDATE_STYLE as VALIDATE_STYLE, detectability_ratio as detectability_ratio
 from ._turbulence import Dryden as Dryden
