@@ -108,3 +108,25 @@ def test_driver_keeps_the_start_unless_the_answer_scores_no_worse(linear):
     assert not bool(sol.improved) and int(sol.num_steps) > 0
     np.testing.assert_array_equal(np.asarray(sol.value), np.asarray(u0))
     np.testing.assert_array_equal(np.asarray(sol.kept(*sol.aux)), np.asarray(u0))
+
+
+@pytest.mark.parametrize("steps", [1, 3, 7])
+def test_a_run_time_step_limit_equals_the_compiled_one(steps):
+    """``limit`` under a larger compiled ``max_steps`` stops after the same steps at the same point, reported as
+    reaching the limit, as ``max_steps=limit`` itself; one compiled solve serves every limit."""
+    t = np.linspace(0.0, 4.0, 80)
+    data = 0.8 * np.exp(-1.6 * t) + 0.2 - 1.5 * t
+
+    def res(u, _):
+        return u[0] * jnp.exp(-4.0 * u[1] * t) + u[2] - 2.0 * u[3] * t - data
+
+    solver, u0 = least_squares_solver("lm", 1e-12, 1e-12, 4), jnp.array([0.1, 0.9, 0.9, 0.1])
+    limited = eqx.filter_jit(lambda limit: boxed_least_squares(res, solver, u0, None, 64, limit=limit))
+    static = boxed_least_squares(res, solver, u0, None, steps)
+    dynamic = limited(jnp.asarray(steps))
+    assert int(dynamic.num_steps) == int(static.num_steps) == steps
+    assert dynamic.result == static.result == optx.RESULTS.nonlinear_max_steps_reached
+    np.testing.assert_array_equal(np.asarray(dynamic.value), np.asarray(static.value))
+    converged = limited(jnp.asarray(64))
+    assert converged.result == optx.RESULTS.successful and int(converged.num_steps) < 64
+    assert limited._cached._cache_size() == 1

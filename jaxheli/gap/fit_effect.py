@@ -136,9 +136,16 @@ def fit_candidates(
     rows = (cand.index, cand.start, cand.lower, cand.upper)
     walk = _walk_slots(pred.outputs)
     base_walks = bool(np.any(np.asarray(base)[walk]))
+    limit, bound = jnp.asarray(max_steps), _step_bound(max_steps)
     fits = [_fit_row(pred.for_walks(base_walks or np.isin(np.asarray(cand.index[i]), walk).any()), theta, base,
-                     *(r[i] for r in rows), max_steps, theta_box) for i in range(rows[0].shape[0])]
+                     *(r[i] for r in rows), limit, bound, theta_box) for i in range(rows[0].shape[0])]
     return EffectFit(*(jnp.stack(parts) for parts in zip(*fits)))
+
+
+def _step_bound(max_steps: int) -> int:
+    """The compiled step bound of a fit of ``max_steps`` steps: the next power of two, at least 64, so that the
+    candidates' 15 steps and the reference's 60 share one program (the limit itself is a run-time value)."""
+    return max(64, 1 << (int(max_steps) - 1).bit_length())
 
 
 def _walk_slots(outputs: tuple[str, ...]) -> Int[np.ndarray, "W"]:
@@ -156,10 +163,12 @@ def _fit_row(
     z0: Float[Array, "K"],
     lo: Float[Array, "K"],
     hi: Float[Array, "K"],
-    max_steps: int,
+    limit: Int[Array, ""],
+    bound: int,
     theta_box: Bounds | None,
 ) -> tuple[Array, ...]:
-    """One candidate row's fit: :class:`EffectFit`'s fields without the leading axis."""
+    """One candidate row's fit of at most ``limit`` steps (``bound`` the compiled limit, :func:`_step_bound`):
+    :class:`EffectFit`'s fields without the leading axis."""
     joint = theta_box is not None
     box = Bounds(jnp.concatenate([theta_box.lower, lo]), jnp.concatenate([theta_box.upper, hi])) if joint \
         else Bounds(lo, hi)
@@ -175,7 +184,7 @@ def _fit_row(
 
     u0 = box.to_unit(p0)
     sol = boxed_least_squares(lambda u, _: fit_res(u), least_squares_solver("lm", 1e-6, 1e-8, u0.shape[0]), u0,
-                              None, max_steps)
+                              None, bound, limit=limit)
     u = sol.value
     res = fit_res(u)
     J = jax.jacfwd(fit_res)(u)

@@ -135,6 +135,19 @@ class BoxedLeastSquares(optx.AbstractGaussNewton):
         self.search = optx.ClassicalTrustRegion() if solver == "lm" else optx.LearningRate(1.0)
         self.verbose = _quiet
 
+    def terminate(self, fn, y, args, options, state, tags):
+        """Optimistix's termination, and a stop after ``options[STEP_LIMIT]`` steps where given (a run-time limit
+        under the compiled ``max_steps``, reported as reaching it: the same iterates, one program for every limit)."""
+        done, result = super().terminate(fn, y, args, options, state, tags)
+        if STEP_LIMIT not in options:
+            return done, result
+        hit = ~done & (state.num_steps >= options[STEP_LIMIT])
+        return done | hit, optx.RESULTS.where(hit, optx.RESULTS.nonlinear_max_steps_reached, result)
+
+
+STEP_LIMIT = "step_limit"
+"""Key of the solver's ``options`` holding a run-time step limit (:meth:`BoxedLeastSquares.terminate`)."""
+
 
 MARGIN = 0.2
 """How far outside the unit box (in bound widths) an iterate may go; :meth:`~jaxheli.bounds.Bounds.penalty` pulls
@@ -208,6 +221,7 @@ def boxed_least_squares(
     args: Args,
     max_steps: int,
     score: Callable[[Float[Array, " n"], Float[Array, " n"], Args], tuple[Float[Array, "2"], Aux]] | None = None,
+    limit: Int[Array, ""] | None = None,
 ) -> BoxedSolution:
     """Least squares on ``fit(u, args)``'s residuals of the unit coordinates ``u``, the penalty past the box
     appended, from ``u0`` (``solver``: its steps stay within :data:`MARGIN` of the box; reaching ``max_steps`` is
@@ -216,13 +230,15 @@ def boxed_least_squares(
     The start is kept unless the solver's answer is finite and scores no worse; then the answer, clipped into the
     box, is. ``score(u0, answer, args)`` (``answer`` as the solver left it) gives the objective at both ``[2]`` and
     whatever else it computed with them (:attr:`BoxedSolution.aux`); by default the penalised residuals' sum of
-    squares.
+    squares. ``limit`` (an array, at most ``max_steps``) stops the solver after that many steps instead, as reaching
+    ``max_steps`` would, without compiling again for each limit.
     """
 
     def penalised(u: Float[Array, " n"], args: Args) -> Float[Array, " r"]:
         return jnp.concatenate([fit(u, args), Bounds.penalty(u)])
 
-    sol = optx.least_squares(penalised, solver, u0, args=args, max_steps=max_steps, throw=False)
+    options = {} if limit is None else {STEP_LIMIT: limit}
+    sol = optx.least_squares(penalised, solver, u0, args=args, options=options, max_steps=max_steps, throw=False)
     if score is None:
         loss, aux = jnp.stack([jnp.sum(penalised(u, args) ** 2) for u in (u0, sol.value)]), None
     else:
