@@ -16,8 +16,9 @@ channel ``rms_k`` of the fit's output error over ``sigma_k``; the trial's
 
 is the part of the effect that the effect-free model class leaves even when fitted to the very flight it is scored on,
 in sensor-noise units. ``excess <= 1``: fitted to the noise-free flight, the base model alone already comes within
-the sensor noise of it, so a diagnosis that credits an effect by its shrink of the validation gap beyond the base
-re-fitted alone has nothing left to credit. The fits use the library's PEM and output error, so this is a
+the sensor noise of it: on that flight the effect is confounded with the base model's parameters, and a diagnosis
+that credits an effect by its shrink of the validation gap beyond the base re-fitted alone can name it only where the
+training flight pins those parameters otherwise. The fits use the library's PEM and output error, so this is a
 diagnostic of where misses come from, never a subset to score on or a rule; the records' verdicts are not changed.
 Writes one row per trial (the per-channel rms, ``excess`` and the trial's verdict) after each trial.
 """
@@ -32,13 +33,9 @@ jax.config.update("jax_enable_x64", True)
 
 import numpy as np  # noqa: E402
 
-from jaxheli.benchmark.blind import (  # noqa: E402
-    BOXES, DEFAULT_OUTPUTS, KINDS, VALIDATE_EXCITATION, sample_injection, scenario,
-)
-from jaxheli.benchmark.truth import VALIDATE_STYLE, Effects, fly, truth_trial  # noqa: E402
+from jaxheli.benchmark.blind import BOXES, DEFAULT_OUTPUTS, noise_free_validation  # noqa: E402
 from jaxheli.data.flight import FlightData  # noqa: E402
 from jaxheli.optim.pem import fit, fitted_problem, pem  # noqa: E402
-from jaxheli.synth.piloted import DEFAULT_NOISE, piloted_flight  # noqa: E402
 
 SEGMENT_S = 6.0
 """Run length, s, of the in-sample output-error fit (the diagnosis's restart interval)."""
@@ -57,30 +54,10 @@ def in_sample_rms(time_s: np.ndarray, sticks: np.ndarray, readings: np.ndarray, 
     return np.sqrt(np.mean((y - readings) ** 2, axis=0)) / sigma
 
 
-def noise_free_validation(truth: str, kind: str, seed: int) -> tuple[tuple, tuple, np.ndarray]:
-    """A blind trial's validation flight, noise-free, with its effect and re-flown without it (each ``(time,
-    sticks, readings)``), and the sensor-noise std per channel, as the blind check flies them (same seeds)."""
-    where = scenario(seed)
-    if truth == "independent":
-        trial = truth_trial(kind, seed, where.theta, style=where.style, noise=where.noise, strength=where.strength,
-                            duration=30.0, dt=0.05, outputs=DEFAULT_OUTPUTS)
-        clean = fly(where.theta, Effects(), style=VALIDATE_STYLE, duration=30.0, dt=0.05, seed=2 * seed + 1,
-                    noise=trial.noise, outputs=DEFAULT_OUTPUTS)
-        return ((trial.validate.time, trial.validate.sticks, trial.validate.clean),
-                (clean.time, clean.sticks, clean.clean), trial.noise)
-    inj = sample_injection(kind, 7919 * seed + 101 * KINDS.index(kind), DEFAULT_OUTPUTS, 30.0, where.strength)
-    common = dict(duration=30.0, dt=0.05, outputs=DEFAULT_OUTPUTS, excitation=VALIDATE_EXCITATION,
-                  seed=2 * (7919 * seed + KINDS.index(kind)) + 1, noise=0.0)
-    flights = (piloted_flight(where.theta, effect=inj.eta, gust=inj.gust, gust_tau=inj.gust_tau, **common),
-               piloted_flight(where.theta, **common))
-    sigma = np.array([where.noise * DEFAULT_NOISE[c] for c in DEFAULT_OUTPUTS])
-    return (*((f.time, f.inputs, f.outputs) for f in flights), sigma)
-
-
 def absorption(record: dict) -> dict:
     """The in-sample rms with and without the effect and the ``excess`` (module docstring) of one blind record."""
     seed, kind = int(record["seed"]), record["kind"]
-    flown, bare, sigma = noise_free_validation(record["truth_sim"], kind, seed)
+    flown, bare, sigma = noise_free_validation(record["truth_sim"], kind, seed)  # as the blind check flew them
     with_effect, without = in_sample_rms(*flown, sigma), in_sample_rms(*bare, sigma)
     excess = np.sqrt(np.maximum(with_effect**2 - without**2, 0.0))
     return {"kind": kind, "seed": seed, "parts": record.get("parts"), "top": record["top"],

@@ -167,19 +167,50 @@ def blind_flights(injection: Injection, seed: int, where: Scenario, *, duration:
     return train, validate
 
 
-def _library_detectability(injection: Injection, seed: int, where: Scenario, *, duration: float, dt: float,
-                           outputs: tuple[str, ...], train: bool = False) -> float:
-    """The library simulator's detectability of ``injection``, decided before any fit: its validation flight
-    (``train``: its training flight; :func:`blind_flights`) flown noise-free with the effect and again without it
-    (same excitation and seed, the pilot's feedback re-flown), scored by
-    :func:`~jaxheli.benchmark.truth.detectability_ratio` against the trial's sensor-noise std."""
+def _library_seeds(kind: str, seed: int) -> tuple[int, int]:
+    """The library simulator's seeds of trial ``seed`` of ``kind``: its injection's and its flights'."""
+    return 7919 * seed + 101 * KINDS.index(kind), 7919 * seed + KINDS.index(kind)
+
+
+def _library_pair(injection: Injection, seed: int, where: Scenario, *, duration: float, dt: float,
+                  outputs: tuple[str, ...], train: bool = False) -> tuple[FlightData, FlightData, np.ndarray]:
+    """The library simulator's validation flight (``train``: its training flight; :func:`blind_flights`) flown
+    noise-free with ``injection`` and again without it (same excitation and seed, the pilot's feedback re-flown), and
+    the trial's sensor-noise std per output."""
     excitation, flight_seed = (STYLES[where.style], 2 * seed) if train else (VALIDATE_EXCITATION, 2 * seed + 1)
     common = dict(duration=duration, dt=dt, outputs=outputs, excitation=excitation, seed=flight_seed, noise=0.0)
     flown = piloted_flight(where.theta, effect=injection.eta, gust=injection.gust, gust_tau=injection.gust_tau,
                            **common)
     bare = piloted_flight(where.theta, **common)
-    sigma = np.array([where.noise * DEFAULT_NOISE[c] for c in outputs])
+    return flown, bare, np.array([where.noise * DEFAULT_NOISE[c] for c in outputs])
+
+
+def _library_detectability(injection: Injection, seed: int, where: Scenario, *, duration: float, dt: float,
+                           outputs: tuple[str, ...], train: bool = False) -> float:
+    """The library simulator's detectability of ``injection``, decided before any fit: :func:`_library_pair` scored
+    by :func:`~jaxheli.benchmark.truth.detectability_ratio` against the trial's sensor-noise std."""
+    flown, bare, sigma = _library_pair(injection, seed, where, duration=duration, dt=dt, outputs=outputs, train=train)
     return independent_truth.detectability_ratio(flown.outputs, bare.outputs, sigma)
+
+
+def noise_free_validation(truth: str, kind: str, seed: int, *, duration: float = 30.0, dt: float = 0.05,
+                          outputs: tuple[str, ...] = DEFAULT_OUTPUTS) -> tuple[tuple, tuple, np.ndarray]:
+    """Trial ``seed`` of ``kind``'s validation flight by the ``truth`` simulator (:data:`TRUTHS_SIM`) as the blind
+    check flies it, noise-free, with its effect and re-flown without it (each ``(time, sticks, readings)``), and the
+    sensor-noise std per output: the pair its detectability compares."""
+    where = scenario(seed)
+    if truth == "independent":
+        trial = independent_truth.truth_trial(kind, seed, where.theta, style=where.style, noise=where.noise,
+                                              strength=where.strength, duration=duration, dt=dt, outputs=outputs)
+        clean = independent_truth.fly(where.theta, independent_truth.Effects(),
+                                      style=independent_truth.VALIDATE_STYLE, duration=duration, dt=dt,
+                                      seed=2 * seed + 1, noise=trial.noise, outputs=outputs)
+        return ((trial.validate.time, trial.validate.sticks, trial.validate.clean),
+                (clean.time, clean.sticks, clean.clean), trial.noise)
+    injection_seed, flight_seed = _library_seeds(kind, seed)
+    inj = sample_injection(kind, injection_seed, outputs, duration, where.strength)
+    flown, bare, sigma = _library_pair(inj, flight_seed, where, duration=duration, dt=dt, outputs=outputs)
+    return (flown.time, flown.inputs, flown.outputs), (bare.time, bare.inputs, bare.outputs), sigma
 
 
 BASES: tuple[str, ...] = ("pem", "iwo+polish")
@@ -226,9 +257,10 @@ def trial_flights(
     facts)``, ``injection`` the library kind the oracle fits at its true values, ``right`` the kinds a correct
     diagnosis names, ``facts`` what the record adds (the independent simulator's detectability and parts)."""
     if truth == "library":
-        inj = sample_injection(kind, 7919 * seed + 101 * KINDS.index(kind), outputs, duration, where.strength)
-        train, validate = blind_flights(inj, 7919 * seed + KINDS.index(kind), where, duration=duration, dt=dt)
-        score, train_score = (_library_detectability(inj, 7919 * seed + KINDS.index(kind), where, duration=duration,
+        injection_seed, flight_seed = _library_seeds(kind, seed)
+        inj = sample_injection(kind, injection_seed, outputs, duration, where.strength)
+        train, validate = blind_flights(inj, flight_seed, where, duration=duration, dt=dt)
+        score, train_score = (_library_detectability(inj, flight_seed, where, duration=duration,
                                                      dt=dt, outputs=outputs, train=role) for role in (False, True))
         return inj, train, validate, (kind,), {"detectability": score, "detectable": score > 1.0,
                                                "detectability_train": train_score,

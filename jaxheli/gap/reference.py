@@ -139,8 +139,8 @@ def challenge(
 
 
 def follow(train: Predictor, validate: Predictor, cand: EffectRows, after: Scored, steps: int, box: Bounds) -> Scored:
-    """``after`` (the reference challenged, :func:`challenge`; its candidate rows as first fitted) with the candidates given the basin the reference
-    moved to: when the challenge replaced the reference, every candidate row of ``cand`` is fitted again (``steps``
+    """``after`` (the reference challenged, :func:`challenge`; its candidate rows as first fitted) with the
+    candidates given the basin the reference moved to: when the challenge replaced the reference, every candidate row of ``cand`` is fitted again (``steps``
     LM steps) from the new reference's base parameters and nuisance values, its effect values started where its
     first fit ended, and keeps whichever of its two fits has the lower training RSS. A yardstick that escapes into a
     better basin while the candidates stay in the old one takes from every candidate the credit it had for its
