@@ -1,6 +1,6 @@
 """How much of a blind trial's effect could the effect-free model absorb? A post-hoc reading of a blind run::
 
-    python benchmarks/absorption.py --records RUN/blind.json [--kinds drag servo_dynamics ...] --out absorption.json
+    python benchmarks/absorption.py --records RUN/blind.json [--kinds drag servo_dynamics ...] [--joint] --out F.json
 
 The blind check calls a trial *detectable* when its effect moves some noise-free validation reading by more than the
 sensor noise (``max_k rms_t(y_eff - y_clean) / sigma_k > 1``, the flights re-flown in closed loop with and without
@@ -20,6 +20,13 @@ the sensor noise of it: on that flight the effect is confounded with the base mo
 that credits an effect by its shrink of the validation gap beyond the base re-fitted alone can name it only where the
 training flight pins those parameters otherwise. The fits use the library's PEM and output error, so this is a
 diagnostic of where misses come from, never a subset to score on or a rule; the records' verdicts are not changed.
+
+``--joint`` fits one effect-free base model to **both** noise-free flights of the trial (training and validation)
+at once, with the effect and re-flown without it, and takes the larger of the two flights' excess: ``excess <= 1``
+then says that one set of the base model's parameters reproduces, within the sensor noise, everything the diagnosis
+is given, on the yardstick that calls the effect detectable; such an effect can be told from the base model only by
+what is known of the base beforehand (a prior), not from these two flights.
+
 Writes one row per trial (the per-channel rms, ``excess`` and the trial's verdict) after each trial.
 """
 
@@ -33,57 +40,73 @@ jax.config.update("jax_enable_x64", True)
 
 import numpy as np  # noqa: E402
 
-from jaxheli.benchmark.blind import BOXES, DEFAULT_OUTPUTS, noise_free_validation  # noqa: E402
+from jaxheli.benchmark.blind import BOXES, DEFAULT_OUTPUTS, noise_free_pair  # noqa: E402
 from jaxheli.data.flight import FlightData  # noqa: E402
 from jaxheli.optim.pem import fit, fitted_problem, pem  # noqa: E402
+from jaxheli.problem import parts  # noqa: E402
 
 SEGMENT_S = 6.0
 """Run length, s, of the in-sample output-error fit (the diagnosis's restart interval)."""
 
 
-def in_sample_rms(time_s: np.ndarray, sticks: np.ndarray, readings: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    """Per channel rms of the base model's output error, over ``sigma``, when fitted to the noise-free ``readings``
-    [N, k] (channels :data:`DEFAULT_OUTPUTS`) themselves: PEM, then output error in :data:`SEGMENT_S` runs."""
-    flight = FlightData(time_s, sticks, readings, DEFAULT_OUTPUTS, source="noise-free validation flight")
+def in_sample_rms(flights: list[tuple[np.ndarray, np.ndarray, np.ndarray]], sigma: np.ndarray) -> np.ndarray:
+    """Per flight and channel rms of the base model's output error, over ``sigma`` (``[F, k]``), when one base model
+    is fitted to the noise-free ``flights`` (each ``(time, sticks, readings[N, k])``, channels
+    :data:`DEFAULT_OUTPUTS`) themselves: PEM, then output error in :data:`SEGMENT_S` runs."""
+    data = [FlightData(t, u, y, DEFAULT_OUTPUTS, source=f"noise-free flight {i}") for i, (t, u, y) in
+            enumerate(flights)]
     lower, upper = BOXES["hull"]
-    base = pem(flight, max_steps=200, outputs=DEFAULT_OUTPUTS, lower=lower, upper=upper)
-    runs = fitted_problem(flight, outputs=DEFAULT_OUTPUTS, lower=lower, upper=upper).variant(
-        segment=SEGMENT_S, x0="estimated", simulator="scan")
-    res = fit(runs, base.theta, "pem", "lm", 150, None, 1e-8, 1e-8)
-    y = np.asarray(runs.sim(np.asarray(res.theta)))
-    return np.sqrt(np.mean((y - readings) ** 2, axis=0)) / sigma
+    base = pem(data[0] if len(data) == 1 else data, max_steps=200, outputs=DEFAULT_OUTPUTS, lower=lower,
+               upper=upper)
+    runs = fitted_problem(data[0] if len(data) == 1 else data, outputs=DEFAULT_OUTPUTS, lower=lower,
+                          upper=upper).variant(segment=SEGMENT_S, x0="estimated", simulator="scan")
+    theta = np.asarray(fit(runs, base.theta, "pem", "lm", 150, None, 1e-8, 1e-8).theta)
+    return np.stack([np.sqrt(np.mean((np.asarray(run.sim(theta)) - y) ** 2, axis=0)) / sigma
+                     for run, (_, _, y) in zip(parts(runs), flights)])
 
 
-def absorption(record: dict) -> dict:
-    """The in-sample rms with and without the effect and the ``excess`` (module docstring) of one blind record."""
+def absorption(record: dict, joint: bool = False) -> dict:
+    """The in-sample rms with and without the effect and the ``excess`` (module docstring) of one blind record
+    (``joint``: one base model fitted to both its flights, the larger flight's excess)."""
     seed, kind = int(record["seed"]), record["kind"]
-    flown, bare, sigma = noise_free_validation(record["truth_sim"], kind, seed)  # as the blind check flew them
-    with_effect, without = in_sample_rms(*flown, sigma), in_sample_rms(*bare, sigma)
+    pairs = [noise_free_pair(record["truth_sim"], kind, seed, train=train)  # as the blind check flew them
+             for train in ((False, True) if joint else (False,))]
+    sigma = pairs[0][2]
+    with_effect = in_sample_rms([flown for flown, _, _ in pairs], sigma)
+    without = in_sample_rms([bare for _, bare, _ in pairs], sigma)
     excess = np.sqrt(np.maximum(with_effect**2 - without**2, 0.0))
+    flight, channel = np.unravel_index(int(excess.argmax()), excess.shape)
     return {"kind": kind, "seed": seed, "parts": record.get("parts"), "top": record["top"],
             "correct": record["correct"], "detectability": record["detectability"],
             "resolvable": record.get("resolvable"), "oracle_shrink_pct": record.get("oracle_shrink_pct"),
-            "rms_effect": dict(zip(DEFAULT_OUTPUTS, with_effect.tolist())),
-            "rms_clean": dict(zip(DEFAULT_OUTPUTS, without.tolist())),
-            "excess": float(excess.max()), "excess_channel": DEFAULT_OUTPUTS[int(excess.argmax())]}
+            "joint": joint, "flights": ["validation", "training"][:len(pairs)],
+            "rms_effect": [dict(zip(DEFAULT_OUTPUTS, r.tolist())) for r in with_effect],
+            "rms_clean": [dict(zip(DEFAULT_OUTPUTS, r.tolist())) for r in without],
+            "excess": float(excess.max()), "excess_flight": ["validation", "training"][int(flight)],
+            "excess_channel": DEFAULT_OUTPUTS[int(channel)]}
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--records", required=True, help="blind.json of a blind run")
     p.add_argument("--kinds", nargs="+", help="kinds to read (default: every kind with a candidate)")
+    p.add_argument("--joint", action="store_true", help="one base model fitted to both flights of each trial")
+    p.add_argument("--seeds", help="only these seeds, FIRST:LAST inclusive (to split a run over processes)")
     p.add_argument("--out", required=True, help="JSON file of the rows, rewritten after each trial")
     args = p.parse_args()
     records = json.load(open(args.records))["records"]
     chosen = [r for r in records if r["detectable"] and r["kind"] not in ("none", "quantisation", "vibration")
               and (args.kinds is None or r["kind"] in args.kinds)]
+    if args.seeds:
+        first, last = (int(v) for v in args.seeds.split(":"))
+        chosen = [r for r in chosen if first <= int(r["seed"]) <= last]
     rows = []
     for i, record in enumerate(chosen):
         start = time.perf_counter()
-        rows.append(absorption(record))
+        rows.append(absorption(record, args.joint))
         row = rows[-1]
         print(f"[{i + 1}/{len(chosen)}] {row['kind']} {row['seed']}: excess {row['excess']:.2f} "
-              f"({row['excess_channel']}), {'right' if row['correct'] else row['top']} "
+              f"({row['excess_flight']} {row['excess_channel']}), {'right' if row['correct'] else row['top']} "
               f"({time.perf_counter() - start:.0f} s)", flush=True)
         with open(args.out, "w") as f:
             json.dump(rows, f, indent=1)

@@ -193,23 +193,24 @@ def _library_detectability(injection: Injection, seed: int, where: Scenario, *, 
     return independent_truth.detectability_ratio(flown.outputs, bare.outputs, sigma)
 
 
-def noise_free_validation(truth: str, kind: str, seed: int, *, duration: float = 30.0, dt: float = 0.05,
-                          outputs: tuple[str, ...] = DEFAULT_OUTPUTS) -> tuple[tuple, tuple, np.ndarray]:
-    """Trial ``seed`` of ``kind``'s validation flight by the ``truth`` simulator (:data:`TRUTHS_SIM`) as the blind
-    check flies it, noise-free, with its effect and re-flown without it (each ``(time, sticks, readings)``), and the
-    sensor-noise std per output: the pair its detectability compares."""
+def noise_free_pair(truth: str, kind: str, seed: int, *, train: bool = False, duration: float = 30.0,
+                    dt: float = 0.05, outputs: tuple[str, ...] = DEFAULT_OUTPUTS) -> tuple[tuple, tuple, np.ndarray]:
+    """Trial ``seed`` of ``kind``'s validation flight (``train``: its training flight) by the ``truth`` simulator
+    (:data:`TRUTHS_SIM`) as the blind check flies it, noise-free, with its effect and re-flown without it (each
+    ``(time, sticks, readings)``), and the sensor-noise std per output: the pair its detectability compares."""
     where = scenario(seed)
     if truth == "independent":
         trial = independent_truth.truth_trial(kind, seed, where.theta, style=where.style, noise=where.noise,
                                               strength=where.strength, duration=duration, dt=dt, outputs=outputs)
-        clean = independent_truth.fly(where.theta, independent_truth.Effects(),
-                                      style=independent_truth.VALIDATE_STYLE, duration=duration, dt=dt,
-                                      seed=2 * seed + 1, noise=trial.noise, outputs=outputs)
-        return ((trial.validate.time, trial.validate.sticks, trial.validate.clean),
-                (clean.time, clean.sticks, clean.clean), trial.noise)
+        flown, style, flight_seed = ((trial.train, where.style, 2 * seed) if train
+                                     else (trial.validate, independent_truth.VALIDATE_STYLE, 2 * seed + 1))
+        clean = independent_truth.fly(where.theta, independent_truth.Effects(), style=style, duration=duration,
+                                      dt=dt, seed=flight_seed, noise=trial.noise, outputs=outputs)
+        return ((flown.time, flown.sticks, flown.clean), (clean.time, clean.sticks, clean.clean), trial.noise)
     injection_seed, flight_seed = _library_seeds(kind, seed)
     inj = sample_injection(kind, injection_seed, outputs, duration, where.strength)
-    flown, bare, sigma = _library_pair(inj, flight_seed, where, duration=duration, dt=dt, outputs=outputs)
+    flown, bare, sigma = _library_pair(inj, flight_seed, where, duration=duration, dt=dt, outputs=outputs,
+                                       train=train)
     return (flown.time, flown.inputs, flown.outputs), (bare.time, bare.inputs, bare.outputs), sigma
 
 
