@@ -46,7 +46,7 @@ E = EFFECTS.size(OUT)
 
 
 def test_layout_is_the_historical_one():
-    sizes = {"delay": 4, "lag": 4, "sat": 4, "drag": 4, "rotor": 2, "gust": 3, "mis": 5, "bias": K, "drift": K,
+    sizes = {"delay": 4, "lag": 4, "sat": 4, "drag": 4, "rotor": 2, "gust": 3, "mis": 6, "bias": K, "drift": K,
              "walk": K}
     stops = np.cumsum(list(sizes.values()))
     assert layout(OUT) == {g: slice(int(stop - n), int(stop)) for (g, n), stop in zip(sizes.items(), stops)}

@@ -151,9 +151,10 @@ def test_actuators_match_numpy_references():
 
 
 def test_sensor_model_rotation_scale_bias_and_inverse():
-    eps, eps_v, sq, bias, drift = 0.05, -0.08, 0.07, 0.3, 0.01
+    eps, eps_v, eps_a, sq, bias, drift = 0.05, -0.08, 0.03, 0.07, 0.3, 0.01
     eta = _eta(mis=(0, eps), bias=(OUT.index("v"), bias), drift=(OUT.index("v"), drift))
-    eta[LAY["mis"].start + 1], eta[LAY["mis"].start + 3] = eps_v, sq  # the velocity frame's yaw, scale_q
+    mis = LAY["mis"].start
+    eta[mis + 1], eta[mis + 2], eta[mis + 4] = eps_v, eps_a, sq  # the velocity's and attitude's yaws, scale_q
     plant = augmented.make_plant(jnp.asarray(TABLE2), jnp.asarray(eta), DT, OUT)
     x = np.random.default_rng(1).normal(size=13)
     t = 3.0
@@ -161,9 +162,10 @@ def test_sensor_model_rotation_scale_bias_and_inverse():
     s = dict(zip(("u", "v", "p", "q", "phi", "theta", "a", "b", "w", "r"), x))
     c, n = np.cos(eps), np.sin(eps)
     cv, nv = np.cos(eps_v), np.sin(eps_v)
+    ca, na = np.cos(eps_a), np.sin(eps_a)
     expected = [cv * s["u"] + nv * s["v"], -nv * s["u"] + cv * s["v"] + bias + drift * t,
                 c * s["p"] + n * (1 + sq) * s["q"], -n * s["p"] + c * (1 + sq) * s["q"],
-                c * s["phi"] + n * s["theta"], -n * s["phi"] + c * s["theta"], s["w"], s["r"]]
+                ca * s["phi"] + na * s["theta"], -na * s["phi"] + ca * s["theta"], s["w"], s["r"]]
     np.testing.assert_allclose(y, expected, atol=1e-14)
     back = plant.unmeasure(jnp.asarray(y)[None, :], jnp.asarray([t]))[0]
     np.testing.assert_allclose(back, x[[0, 1, 2, 3, 4, 5, 8, 9]], atol=1e-13)

@@ -24,7 +24,8 @@ GYROS: tuple[str, ...] = ("p", "q", "r")
 """Output channels a scale-factor error acts on (gyros)."""
 
 _PAIRS = (("u", "v"), ("p", "q"), ("phi", "theta"))
-"""Output pairs a yaw misalignment rotates: the velocity's by its frame's own angle, the others by the IMU's mount."""
+"""Output pairs a yaw misalignment rotates, each by its own angle: the velocity's by its frame's, the rates' by the
+gyros' mount, the attitudes' by the attitude estimator's frame."""
 
 _UNITS = {"u": "m/s", "v": "m/s", "w": "m/s", "p": "rad/s", "q": "rad/s", "r": "rad/s", "phi": "rad", "theta": "rad"}
 
@@ -274,16 +275,17 @@ constant (s, up to 3; 0.5 s at no effect). Injected: 2-5 rad/s^2 per stick with 
 
 
 def _misalignment_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
-    return (Param(at("mis", 0), "yaw_misalignment", "rad", "p-q,phi-theta", 0.0, False, 0.35, tries=(0.1, -0.1)),
+    return (Param(at("mis", 0), "yaw_misalignment", "rad", "p-q", 0.0, False, 0.35, tries=(0.1, -0.1)),
             Param(at("mis", 1), "velocity_yaw", "rad", "u-v", 0.0, False, 0.35),
-            *(Param(at("mis", 2 + i), f"scale_{c}", "fraction", c, 0.0, False, 0.5) for i, c in enumerate(GYROS)
+            Param(at("mis", 2), "attitude_yaw", "rad", "phi-theta", 0.0, False, 0.35),
+            *(Param(at("mis", 3 + i), f"scale_{c}", "fraction", c, 0.0, False, 0.5) for i, c in enumerate(GYROS)
               if c in outputs))
 
 
 def _sensor_matrix(plant: PlantView) -> Float[Array, "k k"]:
-    """``M``: scale factors on p, q, r, then a yaw rotation of the (u, v) pair by the velocity frame's angle and of
-    the (p, q) and (phi, theta) pairs by the IMU's."""
-    eps, eps_v, *scale = plant.group("mis")
+    """``M``: scale factors on p, q, r, then a yaw rotation of the (u, v) pair by the velocity frame's angle, of the
+    (p, q) pair by the gyros' mount and of the (phi, theta) pair by the attitude estimator's frame."""
+    eps, eps_v, eps_a, *scale = plant.group("mis")
     outputs = plant.outputs
     k = len(outputs)
     diag = jnp.ones(k)
@@ -291,7 +293,7 @@ def _sensor_matrix(plant: PlantView) -> Float[Array, "k k"]:
         if name in outputs:
             diag = diag.at[outputs.index(name)].add(s)
     R = jnp.eye(k)
-    for (a, b), angle in zip(_PAIRS, (eps_v, eps, eps)):
+    for (a, b), angle in zip(_PAIRS, (eps_v, eps, eps_a)):
         if a in outputs and b in outputs:
             i, j = outputs.index(a), outputs.index(b)
             c, s = jnp.cos(angle), jnp.sin(angle)
@@ -312,12 +314,13 @@ def _inject_misalignment(dice: Dice) -> Draw:
     gyros = [c for c in GYROS if c in dice.outputs]
     gyro = gyros[int(dice.rng.integers(len(gyros)))]
     yaw = dice.sign * np.deg2rad(dice.rng.uniform(2.0, 5.0))
-    return Draw({f"scale_{gyro}": scale, "yaw_misalignment": yaw, "velocity_yaw": yaw}, "yaw_misalignment")
+    return Draw({f"scale_{gyro}": scale, "yaw_misalignment": yaw, "velocity_yaw": yaw, "attitude_yaw": yaw},
+                "yaw_misalignment")
 
 
 SENSOR_MISALIGNMENT = Effect(
     name="sensor_misalignment",
-    groups=(Group("mis", 2 + len(GYROS)),),
+    groups=(Group("mis", 3 + len(GYROS)),),
     eta_order=6,
     params=_misalignment_params,
     terms=(Term("mounting", _mount, _unmount),),
@@ -326,8 +329,10 @@ SENSOR_MISALIGNMENT = Effect(
 """A yaw mounting misalignment of the IMU (rad, plausible up to 0.35 = 20 deg; further starts at +-0.1: the base
 model's cross derivatives mimic a small rotation of p and q, so a joint fit from no misalignment stops short), the
 velocity frame's own yaw (rad, up to 0.35: satellite-navigation velocity is resolved into body axes through the
-heading estimate, not through the IMU's mount) and scale-factor errors of the gyros present (fractions, up to 0.5).
-Injected: 2-5 deg on both with a 3-8 % scale error on one random gyro."""
+heading estimate, not through the IMU's mount), the attitude estimator's own yaw (rad, up to 0.35: an estimator
+aligned to the airframe reads true roll and pitch from misaligned gyros, one that runs in the IMU's frame reads them
+rotated as the rates) and scale-factor errors of the gyros present (fractions, up to 0.5). Injected: 2-5 deg on all
+three with a 3-8 % scale error on one random gyro."""
 
 EFFECTS = Registry((INPUT_DELAY, ACTUATOR_LAG, OUTPUT_BIAS_DRIFT, PROCESS_NOISE, QUADRATIC_DRAG, CONTROL_SATURATION,
                     ROTOR_SPEED_COUPLING, SENSOR_MISALIGNMENT))
