@@ -222,6 +222,30 @@ def test_an_unknown_restart_or_box_is_named_before_any_flight():
         run_trial("none", 0, box="wide")
 
 
+@pytest.mark.parametrize("truth", ["independent", "library"])
+def test_the_noise_free_pairs_are_the_flights_whose_detectability_the_trial_records(truth):
+    """Either flight's noise-free pair (with the effect, re-flown without it) is the pair the blind trial scored:
+    its ratio is the trial's detectability (validation) and training detectability, and the two flights differ."""
+    from jaxheli.benchmark import truth as independent_truth
+    from jaxheli.benchmark.blind import noise_free_pair, _library_detectability, _library_seeds
+
+    kind, seed, duration = "logger_delay" if truth == "independent" else "input_delay", 7, 12.0
+    pairs = [noise_free_pair(truth, kind, seed, train=train, duration=duration) for train in (False, True)]
+    ratios = [independent_truth.detectability_ratio(flown[2], bare[2], sigma) for flown, bare, sigma in pairs]
+    where = scenario(seed)
+    if truth == "independent":
+        trial = independent_truth.truth_trial(kind, seed, where.theta, style=where.style, noise=where.noise,
+                                              strength=where.strength, duration=duration)
+        expected = [trial.score, trial.train_score]
+    else:
+        injection_seed, flight_seed = _library_seeds(kind, seed)
+        inj = sample_injection(kind, injection_seed, DEFAULT_OUTPUTS, duration, where.strength)
+        expected = [_library_detectability(inj, flight_seed, where, duration=duration, dt=0.05,
+                                           outputs=DEFAULT_OUTPUTS, train=train) for train in (False, True)]
+    np.testing.assert_allclose(ratios, expected, rtol=1e-12)
+    assert min(ratios) > 0 and not np.allclose(pairs[0][0][1], pairs[1][0][1])
+
+
 def test_validation_flight_differs_from_training_flight():
     where = scenario(1)
     train, validate = blind_flights(sample_injection("input_delay", 1), 1, where, duration=12.0)
