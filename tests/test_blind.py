@@ -95,6 +95,7 @@ def test_summary_arithmetic_and_table():
     assert row["detectable_trials"] == 2 and row["top1_detectable_pct"] == 50.0  # the simulator found the third's effect below the noise
     assert row["in_tie_detectable_pct"] == 100.0
     assert row["magnitude_error_median_detectable"] == pytest.approx(0.2)
+    assert row["magnitude_error_median_named"] == pytest.approx(0.1)  # the detectable trial named right alone
     assert row["shrink_vs_oracle_pct"] == pytest.approx(85.0)
     # the second trial's training flight does not show its effect (the simulator's verdict), nor resolve it (oracle
     # at 0.4 standard errors)
@@ -113,7 +114,7 @@ def test_summary_arithmetic_and_table():
     # both detectable trials' oracles shrink the gap 50 % (>= MIN_SHRINK): the form could be credited in each
     assert row["explainable_trials"] == 2 and row["top1_explainable_pct"] == 50.0
     assert not explainable({**records[0], "oracle_shrink_pct": MIN_SHRINK - 0.1}) and not explainable(records[2])
-    assert ("| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 1 | 100 | 100 | 10.0 % | 1 | 100 | 100 | 10.0 % "
+    assert ("| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 10.0 % | 1 | 100 | 100 | 10.0 % | 1 | 100 | 100 | 10.0 % "
             "| 20.0 % | 5.0 % | 85.0 | 0 | 2 | 50 |") in markdown(s)
 
 
