@@ -16,16 +16,16 @@ channel ``rms_k`` of the fit's output error over ``sigma_k``; the trial's
 
 is the part of the effect that the effect-free model class leaves even when fitted to the very flight it is scored on,
 in sensor-noise units. ``excess <= 1``: fitted to the noise-free flight, the base model alone already comes within
-the sensor noise of it: on that flight the effect is confounded with the base model's parameters, and a diagnosis
-that credits an effect by its shrink of the validation gap beyond the base re-fitted alone can name it only where the
-training flight pins those parameters otherwise. The fits use the library's PEM and output error, so this is a
-diagnostic of where misses come from, never a subset to score on or a rule; the records' verdicts are not changed.
+the sensor noise of it, rms over the record. That is not a limit of the data: the rms is still hundreds of samples
+of it, and a candidate of the effect's own form can stand out (test seeds 5200-5219: the misalignment candidate with
+the attitude's own yaw named 6 of 7 jointly absorbed trials right, README); it marks where a candidate must have
+the effect's form to be credited. The fits use the library's PEM and output error, so this is a diagnostic of where
+misses come from, never a subset to score on or a rule; the records' verdicts are not changed.
 
 ``--joint`` fits one effect-free base model to **both** noise-free flights of the trial (training and validation)
 at once, with the effect and re-flown without it, and takes the larger of the two flights' excess: ``excess <= 1``
-then says that one set of the base model's parameters reproduces, within the sensor noise, everything the diagnosis
-is given, on the yardstick that calls the effect detectable; such an effect can be told from the base model only by
-what is known of the base beforehand (a prior), not from these two flights.
+then says that one set of the base model's parameters reproduces, within the sensor noise (rms), everything the
+diagnosis is given, on the yardstick that calls the effect detectable.
 
 Writes one row per trial (the per-channel rms, ``excess`` and the trial's verdict) after each trial.
 """
