@@ -55,11 +55,11 @@ def in_sample_rms(flights: list[tuple[np.ndarray, np.ndarray, np.ndarray]], sigm
     :data:`DEFAULT_OUTPUTS`) themselves: PEM, then output error in :data:`SEGMENT_S` runs."""
     data = [FlightData(t, u, y, DEFAULT_OUTPUTS, source=f"noise-free flight {i}") for i, (t, u, y) in
             enumerate(flights)]
+    data = data[0] if len(data) == 1 else data
     lower, upper = BOXES["hull"]
-    base = pem(data[0] if len(data) == 1 else data, max_steps=200, outputs=DEFAULT_OUTPUTS, lower=lower,
-               upper=upper)
-    runs = fitted_problem(data[0] if len(data) == 1 else data, outputs=DEFAULT_OUTPUTS, lower=lower,
-                          upper=upper).variant(segment=SEGMENT_S, x0="estimated", simulator="scan")
+    base = pem(data, max_steps=200, outputs=DEFAULT_OUTPUTS, lower=lower, upper=upper)
+    runs = fitted_problem(data, outputs=DEFAULT_OUTPUTS, lower=lower, upper=upper).variant(
+        segment=SEGMENT_S, x0="estimated", simulator="scan")
     theta = np.asarray(fit(runs, base.theta, "pem", "lm", 150, None, 1e-8, 1e-8).theta)
     return np.stack([np.sqrt(np.mean((np.asarray(run.sim(theta)) - y) ** 2, axis=0)) / sigma
                      for run, (_, _, y) in zip(parts(runs), flights)])
@@ -91,15 +91,11 @@ def main() -> None:
     p.add_argument("--records", required=True, help="blind.json of a blind run")
     p.add_argument("--kinds", nargs="+", help="kinds to read (default: every kind with a candidate)")
     p.add_argument("--joint", action="store_true", help="one base model fitted to both flights of each trial")
-    p.add_argument("--seeds", help="only these seeds, FIRST:LAST inclusive (to split a run over processes)")
     p.add_argument("--out", required=True, help="JSON file of the rows, rewritten after each trial")
     args = p.parse_args()
     records = json.load(open(args.records))["records"]
     chosen = [r for r in records if r["detectable"] and r["kind"] not in ("none", "quantisation", "vibration")
               and (args.kinds is None or r["kind"] in args.kinds)]
-    if args.seeds:
-        first, last = (int(v) for v in args.seeds.split(":"))
-        chosen = [r for r in chosen if first <= int(r["seed"]) <= last]
     rows = []
     for i, record in enumerate(chosen):
         start = time.perf_counter()

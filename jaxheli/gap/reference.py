@@ -139,15 +139,15 @@ def challenge(
 
 
 def follow(train: Predictor, validate: Predictor, cand: EffectRows, after: Scored, steps: int, box: Bounds) -> Scored:
-    """``after`` (the reference challenged, :func:`challenge`; its candidate rows as first fitted) with the
-    candidates given the basin the reference moved to: when the challenge replaced the reference, every candidate row of ``cand`` is fitted again (``steps``
-    LM steps) from the new reference's base parameters and nuisance values, its effect values started where its
-    first fit ended, and keeps whichever of its two fits has the lower training RSS. A yardstick that escapes into a
-    better basin while the candidates stay in the old one takes from every candidate the credit it had for its
-    effect, and which candidate moved it decides the others' verdicts. The challenge replaced the reference in all 52
-    trials of design seeds 80-83 (independent simulator, every kind, controls 80-87); following it, the diagnosis was
-    right on 22 of their 30 detectable trials against 19 (two Dryden and a logger delay gained, none lost), controls
-    clean either way; on held-out seeds 5140-5149 it changed no verdict (the same 50 of 71, README)."""
+    """``after`` (the reference challenged, :func:`challenge`; its candidate rows as first fitted) with the candidates
+    given the basin the reference moved to: when the challenge replaced the reference, every candidate row of ``cand``
+    is fitted again (``steps`` LM steps) from the new reference's base parameters and nuisance values, its effect values
+    started where its first fit ended, and keeps whichever of its two fits has the lower training RSS. A yardstick that
+    escapes into a better basin while the candidates stay in the old one takes from every candidate the credit it had
+    for its effect, and which candidate moved it decides the others' verdicts. The challenge replaced the reference in
+    all 52 trials of design seeds 80-83 (independent simulator, every kind, controls 80-87); following it, the diagnosis
+    was right on 22 of their 30 detectable trials against 19 (two Dryden and a logger delay gained, none lost), controls
+    clean either way; on held-out seeds 5140-5149 it changed no verdict (the same 50 of 71, docs/blind_history.md)."""
     if not after.moved or cand.index.shape[0] < 2:
         return after
     base = jnp.asarray(no_effect(train.outputs))
