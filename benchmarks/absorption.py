@@ -32,7 +32,6 @@ Writes one row per trial (the per-channel rms, ``excess`` and the trial's verdic
 
 import argparse
 import json
-import time
 
 import jax
 
@@ -40,6 +39,8 @@ jax.config.update("jax_enable_x64", True)
 
 import numpy as np  # noqa: E402
 
+from jaxheli import reporting  # noqa: E402
+from jaxheli._progress import stage  # noqa: E402
 from jaxheli.benchmark.blind import BOXES, DEFAULT_OUTPUTS, noise_free_pair  # noqa: E402
 from jaxheli.data.flight import FlightData  # noqa: E402
 from jaxheli.optim.pem import fit, fitted_problem, pem  # noqa: E402
@@ -97,15 +98,15 @@ def main() -> None:
     chosen = [r for r in records if r["detectable"] and r["kind"] not in ("none", "quantisation", "vibration")
               and (args.kinds is None or r["kind"] in args.kinds)]
     rows = []
-    for i, record in enumerate(chosen):
-        start = time.perf_counter()
-        rows.append(absorption(record, args.joint))
-        row = rows[-1]
-        print(f"[{i + 1}/{len(chosen)}] {row['kind']} {row['seed']}: excess {row['excess']:.2f} "
-              f"({row['excess_flight']} {row['excess_channel']}), {'right' if row['correct'] else row['top']} "
-              f"({time.perf_counter() - start:.0f} s)", flush=True)
-        with open(args.out, "w") as f:
-            json.dump(rows, f, indent=1)
+    with reporting():
+        for i, record in enumerate(chosen):
+            with stage(f"[{i + 1}/{len(chosen)}] {record['kind']} {record['seed']}") as now:
+                rows.append(absorption(record, args.joint))
+                row = rows[-1]
+                now.outcome = (f"excess {row['excess']:.2f} ({row['excess_flight']} {row['excess_channel']}), "
+                               f"{'right' if row['correct'] else row['top']}")
+            with open(args.out, "w") as f:
+                json.dump(rows, f, indent=1)
 
 
 if __name__ == "__main__":
