@@ -138,6 +138,7 @@ OUTPUT_BIAS_DRIFT = Effect(
     params=_channel_params,
     terms=(Term("reading", _offset, _remove_offset),),
     inject=_inject_bias_drift,
+    filtered=True,
 )
 """A constant bias and a linear drift on every output channel (the channel's units and per s; bias up to
 3 m/s, 0.5 rad/s or 0.35 rad, drift up to that bias per 10 s): ``y + bias + drift t``, and a random walk of the bias
@@ -167,6 +168,7 @@ PROCESS_NOISE = Effect(
     params=_process_noise_params,
     terms=(),
     inject=_inject_gusts,
+    filtered=True,
 )
 """First-order Gauss-Markov wind on u, v, w: std (m/s, plausible up to 5), correlation time (s, up to 10; 1 s at no
 effect) and a cut ``c`` of the restart filter's white state noise (``track`` to ``track e^-|c|``, ``|c|`` up to 10:

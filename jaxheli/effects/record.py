@@ -136,7 +136,8 @@ class Effect:
     so no existing slot moves). ``params(outputs, at)``: its parameters for a flight with output channels
     ``outputs``, ``at(group, i)`` giving the slot of the ``i``-th entry of one of its groups. ``terms``: the
     physics it adds to the plant (none for an effect that only another component reads). ``inject(dice)``:
-    a :class:`Draw` at a random realistic magnitude.
+    a :class:`Draw` at a random realistic magnitude. ``filtered``: the restart filter reads its parameters (a
+    wind, a bias walk), so fitting it whitens the residuals as well as explaining them.
     """
 
     name: str
@@ -145,6 +146,7 @@ class Effect:
     params: Callable[[tuple[str, ...], Callable[[str, int], int]], tuple[Param, ...]]
     terms: tuple[Term, ...]
     inject: Callable[[Dice], Draw]
+    filtered: bool = False
 
 
 @dataclasses.dataclass(frozen=True)

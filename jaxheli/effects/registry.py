@@ -217,6 +217,12 @@ def at_bound(effect: str, outputs: tuple[str, ...], value: np.ndarray) -> list[s
             if not np.isfinite(v) or v >= (1.0 - AT_BOUND) * p.bound]
 
 
+def filtered(effect: str) -> bool:
+    """Whether the restart filter reads a parameter of ``effect`` (or of a part of a combination ``"a+b"``):
+    :attr:`~jaxheli.effects.record.Effect.filtered`."""
+    return any(EFFECTS.effect(part).filtered for part in effect.split("+"))
+
+
 def evidence(effect: str, outputs: tuple[str, ...], value: np.ndarray, stderr: np.ndarray) -> float:
     """The fitted effect's distance from no effect in standard errors: the largest ``|value - neutral| /
     stderr`` over its size parameters (``shape`` ones excluded; 0 when no standard error is positive)."""

@@ -55,6 +55,7 @@ class Thresholds:
     effect_sigma: float
     large_shrink: float
     held_out_sigma: float
+    lr_p: float
     tie_sigma: float
     settled_pct: float
     start_tie_pct: float
