@@ -19,7 +19,8 @@ from jaxheli.gap.fit_effect import EffectFit
 from jaxheli.gap.ranking import explains_more, predictor_pair, rank_effects, structure_leads, verdict
 from jaxheli.gap.records import Structure
 from jaxheli.gap.significance import (
-    EFFECT_SIGMA, HELD_OUT_SIGMA, MIN_Z, TIE_SIGMA, HeldOut, lr_test, paired_se, shrink_entries, yardstick,
+    EFFECT_SIGMA, HELD_OUT_SIGMA, LR_P, MIN_SHRINK, MIN_Z, TIE_SIGMA, HeldOut, lr_test, paired_se, shrink_entries,
+    yardstick,
 )
 from jaxheli.model import TABLE2
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS, piloted_flight
@@ -384,6 +385,35 @@ def test_a_held_out_shrink_of_several_standard_errors_stands_for_a_size_whose_wa
     assert EFFECT_SIGMA * middling.shrink_se_pct <= middling.shrink_pct < HELD_OUT_SIGMA * middling.shrink_se_pct
     assert not middling.significant
     assert entry(0.08, spread, [2.0, 2.0, 0.5]).significant  # the same shrink from a size 4 standard errors out
+
+
+def test_a_clear_training_likelihood_ratio_makes_a_held_out_shrink_below_the_floor_significant():
+    """A 3 % held-out shrink (under MIN_SHRINK) from a delay whose training likelihood ratio is far past LR_P is
+    significant when that shrink stands EFFECT_SIGMA paired standard errors above zero; not when the training flight
+    shows it weakly, not when the shrink is within its noise, and never for an effect the restart filter reads (a
+    gust: fitting it whitens the residuals, so its likelihood ratio is no evidence)."""
+    assert 3.0 < MIN_SHRINK and effects.filtered("process_noise") and effects.filtered("input_delay+output_bias_drift")
+    assert not effects.filtered("input_delay") and not effects.filtered("quadratic_drag")
+    alternate = np.r_[1, -1, 1, -1, 1, -1, 1, -1]
+    gap_base = np.full(len(OUT), 0.2)
+
+    def entry(name: str, rss: float, spread: float):
+        k = len(effects.params(name, OUT))
+        energy = np.stack([np.ones(8), 0.97 + spread * alternate])
+        held = HeldOut(np.stack([gap_base, 0.97 * gap_base]), energy)
+        (e,) = shrink_entries([name], OUT, _fit(np.zeros((1, k)), np.full((1, k), 1.0), [rss]), held, MIN_SHRINK)
+        return e
+
+    clear = entry("input_delay", 0.5, 0.001)
+    assert clear.shrink_pct == pytest.approx(3.0) and clear.fitted.evidence_z == 0.0
+    assert clear.lr.statistic == pytest.approx(100 * np.log(1 / 0.5)) and clear.lr.p_value <= LR_P
+    assert clear.significant
+    weak = entry("input_delay", 0.9, 0.001)
+    assert weak.lr.p_value > LR_P and not weak.significant
+    noisy = entry("input_delay", 0.5, 0.05)
+    assert noisy.shrink_pct < EFFECT_SIGMA * noisy.shrink_se_pct and not noisy.significant
+    gust = entry("process_noise", 0.5, 0.001)
+    assert gust.lr.p_value <= LR_P and not gust.significant
 
 
 def _structure(shrink: float, significant: bool = True) -> Structure:

@@ -10,8 +10,8 @@ import pytest
 from jaxheli.gap import thresholds as th
 
 PACKAGE = Path(th.__file__).resolve().parents[1]
-NAMES = ("MIN_SHRINK", "MIN_Z", "SIG_SIGMA", "EFFECT_SIGMA", "LARGE_SHRINK", "HELD_OUT_SIGMA", "TIE_SIGMA", "SETTLED_PCT", "START_TIE_PCT", "LEFT_BOX",
-         "RESTART", "SEGMENT")
+NAMES = ("MIN_SHRINK", "MIN_Z", "SIG_SIGMA", "EFFECT_SIGMA", "LARGE_SHRINK", "HELD_OUT_SIGMA", "LR_P", "TIE_SIGMA",
+         "SETTLED_PCT", "START_TIE_PCT", "LEFT_BOX", "RESTART", "SEGMENT")
 
 
 def test_every_value_comes_with_the_commit_and_seeds_that_set_it():
