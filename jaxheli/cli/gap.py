@@ -15,7 +15,7 @@ from ..gap.consistency import MAX_TRAVEL_M, check, write_check
 from ..gap.diagnose import diagnose, ranking_table, write_diagnosis
 from ..gap.fit_effect import MAX_STEPS
 from ..gap.predictor import RESTART, RESTARTS, SEGMENT
-from ..gap.significance import MIN_SHRINK
+from ..gap.significance import EFFECT_SIGMA, LR_P, MIN_SHRINK
 from ..gap.prepare import SAMPLE_S, prepare
 from ..model import G_SI
 from ._options import (add_data_option, add_flight_option, add_load_options, add_quiet_option, add_sim_options,
@@ -80,7 +80,10 @@ def add_diagnose_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                    help="Levenberg-Marquardt steps per candidate fit (default %(default)s: the blind check's, on which "
                         "the thresholds were set)")
     p.add_argument("--min-shrink", type=float, default=MIN_SHRINK,
-                   help="smallest significant held-out shrink, %% (default %(default)g: calibrated on effect-free flights with identified base models)")
+                   help="noise floor of the held-out shrink, %% (default %(default)g: set on effect-free flights "
+                        "with identified base models); below it a candidate is significant only when its training "
+                        f"likelihood ratio has p <= {LR_P:g} and its held-out shrink stands {EFFECT_SIGMA:g} standard "
+                        "errors above zero")
     p.add_argument("--frozen-base", action="store_true",
                    help="hold the base model's parameters fixed while fitting each effect (default: re-identify them "
                         "jointly with it and credit it only beyond the base model re-fitted alone)")
