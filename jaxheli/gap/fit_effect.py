@@ -39,7 +39,7 @@ from ..cost import nmse
 from ..effects import registry as fx
 from ..effects.plant import layout, no_effect, size
 from ..model import N_PARAMS
-from ..optim.boxed_lm import boxed_least_squares, least_squares_solver
+from ..optim.boxed_lm import boxed_least_squares, least_squares_solver, step_bound
 from .predictor import Predictor
 
 
@@ -136,16 +136,10 @@ def fit_candidates(
     rows = (cand.index, cand.start, cand.lower, cand.upper)
     walk = _walk_slots(pred.outputs)
     base_walks = bool(np.any(np.asarray(base)[walk]))
-    limit, bound = jnp.asarray(max_steps), _step_bound(max_steps)
+    limit, bound = jnp.asarray(max_steps), step_bound(max_steps)
     fits = [_fit_row(pred.for_walks(base_walks or np.isin(np.asarray(cand.index[i]), walk).any()), theta, base,
                      *(r[i] for r in rows), limit, bound, theta_box) for i in range(rows[0].shape[0])]
     return EffectFit(*(jnp.stack(parts) for parts in zip(*fits)))
-
-
-def _step_bound(max_steps: int) -> int:
-    """The compiled step bound of a fit of ``max_steps`` steps: the next power of two, at least 64, so that the
-    candidates' 15 steps and the reference's 60 share one program (the limit itself is a run-time value)."""
-    return max(64, 1 << (int(max_steps) - 1).bit_length())
 
 
 def _walk_slots(outputs: tuple[str, ...]) -> Int[np.ndarray, "W"]:
@@ -167,7 +161,7 @@ def _fit_row(
     bound: int,
     theta_box: Bounds | None,
 ) -> tuple[Array, ...]:
-    """One candidate row's fit of at most ``limit`` steps (``bound`` the compiled limit, :func:`_step_bound`):
+    """One candidate row's fit of at most ``limit`` steps (``bound`` the compiled limit, :func:`~jaxheli.optim.boxed_lm.step_bound`):
     :class:`EffectFit`'s fields without the leading axis."""
     joint = theta_box is not None
     box = Bounds(jnp.concatenate([theta_box.lower, lo]), jnp.concatenate([theta_box.upper, hi])) if joint \

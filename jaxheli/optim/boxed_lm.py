@@ -149,6 +149,13 @@ STEP_LIMIT = "step_limit"
 """Key of the solver's ``options`` holding a run-time step limit (:meth:`BoxedLeastSquares.terminate`)."""
 
 
+def step_bound(max_steps: int) -> int:
+    """The compiled step bound of a solve of ``max_steps`` steps: the next power of two, at least 64, so that solves
+    of different step counts (a diagnosis candidate's 15 and its reference's 60; a polish race's 20 and the rest of
+    its round) share one program, the count itself a run-time ``limit`` (:func:`boxed_least_squares`)."""
+    return max(64, 1 << (int(max_steps) - 1).bit_length())
+
+
 MARGIN = 0.2
 """How far outside the unit box (in bound widths) an iterate may go; :meth:`~jaxheli.bounds.Bounds.penalty` pulls
 it back. Measured from a 100-generation IWO start on the default flight (3 output-error rounds of 30 steps): 0.2

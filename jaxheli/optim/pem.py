@@ -33,14 +33,14 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from .._types import Array, ArrayLike, Float
+from .._types import Array, ArrayLike, Float, Int
 from .._xla import quick_jit
 from ..bounds import Bounds, Free
 from ..cost import paper_cost, pearson
 from ..data.flight import FlightData
 from ..model import N_PARAMS, PARAM_NAMES
 from ..problem import Problem, Records, as_problem, parts
-from .boxed_lm import FreeAxes, Solver, boxed_least_squares, least_squares_solver
+from .boxed_lm import FreeAxes, Solver, boxed_least_squares, least_squares_solver, step_bound
 from .prior import Prior
 
 _BIG = 1e3
@@ -143,13 +143,15 @@ def _score(v0: Array, v: Array, boxed: _Boxed) -> tuple[Array, tuple[Array, Arra
 
 @quick_jit
 def _solve(
-    boxed: _Boxed, solver: optx.AbstractLeastSquaresSolver, max_steps: int
+    boxed: _Boxed, solver: optx.AbstractLeastSquaresSolver, limit: Int[Array, ""], bound: int
 ) -> tuple[Array, Array, Array, Array, Array, Array, optx.RESULTS]:
-    """One least-squares solve of ``boxed``'s residuals; keeps the start (``base``) unless the solver beat it.
+    """One least-squares solve of ``boxed``'s residuals of at most ``limit`` steps (``bound`` the compiled limit,
+    :func:`~jaxheli.optim.boxed_lm.step_bound`: one program for every step count); keeps the start (``base``) unless
+    the solver beat it.
 
     Returns ``theta, cost_start, cost, rss_start, rss, n_steps, result``.
     """
-    sol = boxed_least_squares(_residual, solver, boxed.axes.start(), boxed, max_steps, _score)
+    sol = boxed_least_squares(_residual, solver, boxed.axes.start(), boxed, bound, _score, limit)
     pair, cost, rss = sol.aux
     return sol.kept(*pair), cost[0], sol.kept(*cost), rss[0], sol.kept(*rss), sol.num_steps, sol.result
 
@@ -245,8 +247,9 @@ def pem(
         start: initial ``theta[40]`` (default: the middle of the bounds, pinned parameters at their value);
             returned unchanged where the solver does not lower the objective.
         solver: ``"lm"`` (Levenberg-Marquardt, default) or ``"gn"`` (Gauss-Newton).
-        max_steps: solver step limit; reaching it is reported (``success=False``), not raised. A static
-            argument: each new value compiles the solver again (~10-15 s on a 2-core CPU).
+        max_steps: solver step limit; reaching it is reported (``success=False``), not raised. A run-time
+            value under a compiled bound (:func:`~jaxheli.optim.boxed_lm.step_bound`): step counts up to the same
+            power of two share one compiled solver.
         free: free parameters (mask or names; default every axis the bounds leave free); the rest stay at
             ``start``.
         rtol, atol: optimistix's Cauchy termination tolerances on the unit coordinates and the loss.
@@ -279,7 +282,8 @@ def fit(
     the answer lowers the objective with them."""
     base, mask = start_vector(start, problem.bounds), problem.bounds.free_mask(free)
     boxed = _Boxed(problem, FreeAxes(problem.bounds, base, mask), objective, prior)
-    raw = _solve(boxed, least_squares_solver(solver, rtol, atol, int(mask.sum())), int(max_steps))
+    raw = _solve(boxed, least_squares_solver(solver, rtol, atol, int(mask.sum())), jnp.asarray(int(max_steps)),
+                 step_bound(max_steps))
     settings = {"objective": objective, "solver": solver, "max_steps": int(max_steps), "rtol": rtol, "atol": atol,
                 "simulator": [part.sim.describe() for part in parts(problem)] if isinstance(problem, Records)
                 else problem.sim.describe(), "prior": prior is not None}
