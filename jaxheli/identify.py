@@ -23,12 +23,13 @@ import jax
 import numpy as np
 import scipy.stats
 
-from ._progress import stage
+from ._progress import note, stage
 from ._types import Float
 from .cost import SearchCost
 from .data.flight import FlightData, constant_outputs, default_outputs
 from .evaluate import evaluate, resolve_params, search_cost_of
 from .model import G_SI, LOWER, PARAM_NAMES, UPPER
+from .optim.cross_validate import CrossValidation, cross_validate
 from .optim.frequency_fit import FrequencyFitResult, IncoherentFlight, cifer_report, frequency_fit
 from .optim.ga import GA
 from .optim.iwo import IWO
@@ -147,6 +148,7 @@ def identify(
     polish_objective: PolishObjective = "output-error",
     polish_steps: int = 100,
     polish_rounds: int = 4,
+    cv_windows: int = 0,
     pem_segment: float = 5.0,
     search_precision: Literal["float32", "float64"] = "float32",
     engine_options: dict[str, Any] | None = None,
@@ -194,6 +196,10 @@ def identify(
             paper's cost: with ``cost="pearson"`` the paper's pure pipeline) or ``"pem"``
             (:func:`jaxheli.optim.polish.polish`).
         polish_steps, polish_rounds: Levenberg-Marquardt steps per round, and the most rounds (output error only).
+        cv_windows: with the output-error polish on one flight, choose the polish's last run length and its
+            stopping round by leave-one-window-out cross-validation over that many windows of the flight
+            (:func:`~jaxheli.optim.cross_validate.cross_validate`; the folds start from the polish's own starts);
+            0 (default) keeps the polish's full schedule.
         pem_segment: predictor restart interval of PEM, s (keeps unstable candidates usable).
         search_precision: arithmetic of the IWO / GA population scoring (float32, the default, is several
             times faster and its costs agree with float64 to 1e-3, see ``tests/test_blocked.py``); the polish,
@@ -222,6 +228,10 @@ def identify(
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if trials < 1 or iterations < 1:
         raise ValueError(f"trials and iterations must be >= 1, got {trials}, {iterations}")
+    if cv_windows and not (method.endswith("+polish") and polish_objective == "output-error"
+                           and isinstance(data, FlightData)):
+        raise ValueError("cv_windows needs a +polish method on the output-error objective and one training flight "
+                         f"(not several, not a Problem); got {method!r}, {polish_objective!r}, {type(data).__name__}")
     local_fit = _local_fit(method, polish_objective) if structure else None
     belief = None if prior is None else Prior.from_percent(resolve_params(prior), prior_sd)
     given = {"outputs": outputs, "segment": segment, "hold": hold, "g": g, "lower": lower, "upper": upper,
@@ -263,8 +273,11 @@ def identify(
                 trial_params, trial_costs = np.stack([f.theta for f in fits]), np.array([f.j_average for f in fits])
         fitted = scored = search
         if method.endswith("+polish"):
+            chosen = None if not cv_windows else _cross_validation(
+                data, search, trial_params, trial_costs, searched, cv_windows, polish_steps, polish_rounds, belief)
             trial_params, trial_costs, polish_info = _polish_trials(
-                search, trial_params, trial_costs, polish_objective, polish_steps, polish_rounds, searched, belief)
+                search, trial_params, trial_costs, polish_objective, polish_steps, polish_rounds, searched, belief,
+                chosen)
         if (method.endswith("+polish") and polish_objective == "output-error") or method == "freq":
             # standard errors with restarts where unstable: a frequency fit may diverge over one run from rest
             fitted = output_error_problem(search, trial_params[int(np.argmin(trial_costs))])
@@ -292,7 +305,8 @@ def identify(
         "segment": settings.segment, "hold": settings.hold, "g": settings.g, "pem_segment": pem_segment,
         "lower": list(settings.lower), "upper": list(settings.upper),
         "cost": settings.cost, "polish_objective": polish_objective if method.endswith("+polish") else None,
-        "polish_steps": polish_steps, "polish_rounds": polish_rounds, "train_source": str(problem.source),
+        "polish_steps": polish_steps, "polish_rounds": polish_rounds, "cv_windows": cv_windows,
+        "train_source": str(problem.source),
         "validate_source": None if validate is None else validate.source,
         "x64": bool(jax.config.jax_enable_x64), "search_precision": settings.precision,
         "engine_options": dict(engine_options or {}), "freq_options": dict(freq_options or {}),
@@ -367,20 +381,37 @@ def _population_trials(
             np.asarray(run.history).reshape(trials, -1), int(np.sum(np.asarray(run.n_evaluations))))
 
 
+def _cross_validation(
+    data: FlightData, search: Problem | Records, trial_params: np.ndarray, trial_costs: np.ndarray,
+    also: np.ndarray | None, count: int, steps: int, rounds: int, prior: Prior | None,
+) -> CrossValidation:
+    """The polish's run length and stopping round chosen by cross-validation on ``data``'s windows, from the best
+    trial's starts."""
+    best = int(np.argmin(trial_costs))
+    starts = trial_params[best] if also is None else np.stack([trial_params[best], also[best]])
+    found = cross_validate(data, search.settings, starts, count, rounds=rounds, max_steps=steps, prior=prior)
+    note(f"cross-validation: {found.describe()}")
+    return found
+
+
 def _polish_trials(
     search: Problem | Records, trial_params: np.ndarray, trial_costs: np.ndarray, objective: PolishObjective,
     steps: int, rounds: int, also: np.ndarray | None = None, prior: Prior | None = None,
+    chosen: CrossValidation | None = None,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """Polish every trial (with ``also[k]``, a second start of trial ``k``, where given: the output-error polish's
-    first round tries both); each trial's cost becomes its polished objective (the paper's cost for ``"pearson"``,
-    else the normalised sum of squares per sample, :func:`jaxheli.cost.output_error_cost`)."""
+    first round tries both; with the run length and stopping round ``chosen`` by cross-validation, where given);
+    each trial's cost becomes its polished objective (the paper's cost for ``"pearson"``, else the normalised sum
+    of squares per sample, :func:`jaxheli.cost.output_error_cost`)."""
     starts = trial_params if also is None else np.stack([trial_params, also], axis=1)
+    schedule = {} if chosen is None else {"final": chosen.final, "stop": chosen.rounds}
     polished = []
     for k, th in enumerate(starts):
         with stage(f"polish of trial {k + 1} of {len(starts)} on the {objective} objective, "
                    + (f"up to {rounds} rounds of " if objective == "output-error" else "")
                    + f"{steps} LM steps") as now:
-            polished.append(polish(th, search, objective=objective, max_steps=steps, rounds=rounds, prior=prior))
+            polished.append(polish(th, search, objective=objective, max_steps=steps, rounds=rounds, prior=prior,
+                                   **schedule))
             now.outcome = f"{polished[-1].n_steps} steps"
     costs = np.array([p.cost if objective == "pearson" else p.rss / search.n_samples for p in polished])
     before, after = int(np.argmin(trial_costs)), int(np.argmin(costs))
@@ -396,6 +427,7 @@ def _polish_trials(
         "steps": [p.n_steps for p in polished],
         "rounds": polished[after].settings.get("rounds"),
         "objective_rounds": _objective_rounds(polished[after], objective, search.n_samples),
+        "cross_validation": None if chosen is None else chosen.to_json(),
     }
     return np.stack([p.theta for p in polished]), costs, info
 

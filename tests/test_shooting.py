@@ -7,7 +7,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-import scipy.linalg
 
 from jaxheli.data.flight import FlightData
 from jaxheli.model import TABLE2, build_ab, output_indices
@@ -19,6 +18,8 @@ from jaxheli.sim.simulate import make_simulator
 from jaxheli.synth.excitation import Excitation
 from jaxheli.synth.piloted import piloted_flight
 
+from numpy_reference import estimated_runs
+
 OUTPUTS = ("u", "v", "p", "q", "phi", "theta", "w", "r")
 
 
@@ -27,37 +28,10 @@ def flight():
     return piloted_flight(TABLE2, duration=12.0, dt=0.02, excitation=Excitation("3211", unit=0.3), seed=3)
 
 
-def _reference(theta, flight, segment):
-    """Each run from rest by scipy's ZOH, its start by a weighted (ridged) least-squares fit, in plain numpy."""
-    A, B = (np.asarray(m) for m in build_ab(theta))
-    M = scipy.linalg.expm(np.block([[A, B], [np.zeros((4, 17))]]) * flight.dt)
-    Ad, Bd = M[:13, :13], M[:13, 13:]
-    u, n, idx = flight.inputs, flight.n_samples, output_indices(OUTPUTS)
-    meas = flight.select(OUTPUTS).outputs
-    w = 1.0 / meas.std(axis=0) ** 2
-    L = n - 1 if segment is None else int(round(segment / flight.dt))
-    out, starts, first, begin = np.zeros_like(meas), [], True, 0
-    while first or begin < n - 1:
-        end = min(begin + L, n - 1)
-        steps = np.arange(begin if first else begin + 1, end + 1)
-        forced, power = {begin: np.zeros(13)}, {begin: np.eye(13)}
-        for k in range(begin, end):
-            forced[k + 1], power[k + 1] = Ad @ forced[k] + Bd @ u[k], Ad @ power[k]
-        G = np.concatenate([power[k][idx] * np.sqrt(w)[:, None] for k in steps])
-        e = np.concatenate([(meas[k] - forced[k][idx]) * np.sqrt(w) for k in steps])
-        gram = G.T @ G
-        x0 = np.linalg.solve(gram + RIDGE * np.trace(gram) / 13 * np.eye(13), G.T @ e)
-        for k in steps:
-            out[k] = forced[k][idx] + power[k][idx] @ x0
-        starts.append(x0)
-        begin, first = end, False
-    return out, np.array(starts)
-
-
 @pytest.mark.parametrize("segment", [None, 1.0, 0.7])
 def test_estimated_runs_match_a_numpy_reference(flight, segment):
     sim = make_simulator(flight, outputs=OUTPUTS, x0="estimated", segment=segment)
-    ref, starts = _reference(TABLE2, flight, segment)
+    ref, starts = estimated_runs(TABLE2, flight, segment, OUTPUTS)
     np.testing.assert_allclose(np.asarray(sim(TABLE2)), ref, rtol=1e-9, atol=1e-9 * np.abs(ref).max())
     np.testing.assert_allclose(np.asarray(run_states(sim, TABLE2)), starts, rtol=1e-7, atol=1e-9)
     assert sim.method == "scan" and "least-squares state" in sim.describe()["mode"]

@@ -50,6 +50,10 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                    help="Levenberg-Marquardt steps per polish round (default 100)")
     p.add_argument("--polish-rounds", type=int, default=4,
                    help="output-error polish: at most this many rounds, the first on 5 s then 20 s runs (default 4)")
+    p.add_argument("--cv-windows", type=int, default=0, metavar="W",
+                   help="output-error polish on one flight: choose its last run length (5 s, 20 s, whole record) "
+                        "and stopping round by leave-one-window-out cross-validation over W windows of the flight "
+                        "(W fits of each run length, each on W - 1 windows; default 0: the full schedule)")
     p.add_argument("--box", choices=BOXES, default="authors",
                    help="search box: authors (default, their config_iwo.m; Lw, Mw, Nw, Yped, Mcol pinned at 0) or wide "
                         "(the physical ranges, jaxheli.model.WIDE_LOWER/UPPER, every parameter free)")
@@ -172,6 +176,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         polish_objective=args.polish_objective,
         polish_steps=args.polish_steps,
         polish_rounds=args.polish_rounds,
+        cv_windows=args.cv_windows,
         checkpoint=None if args.method.startswith(("pem", "freq")) else str(out / "checkpoint.eqx"),
         resume=args.resume,
         progress=not args.quiet,

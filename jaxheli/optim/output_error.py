@@ -14,7 +14,9 @@ maximum-likelihood output error for white measurement noise, also for an open-lo
   80 s from one estimated state the truth's own errors are 10^7 times the noise, over 5 s runs they are the noise;
 - rounds: each round chooses the runs at the current parameters and solves. The first rounds cap the runs at the
   lengths of :data:`LADDER` (short runs first: a poor start's errors cannot build up over a long open-loop run);
-  the fit ends when an uncapped round converges, or after ``rounds`` rounds.
+  the fit ends when an uncapped round converges, or after ``rounds`` rounds. ``final`` caps the runs of every
+  round (the ladder's caps below it first): the run length that
+  :func:`~jaxheli.optim.cross_validate.cross_validate` chooses.
 """
 
 from __future__ import annotations
@@ -78,22 +80,23 @@ def _state_matrix(theta: Float[Array, "40"], g: float) -> Float[Array, "13 13"]:
 
 
 def output_error_problem(
-    problem: Problem | Records, theta: Float[ArrayLike, "40"], growth: float = GROWTH
+    problem: Problem | Records, theta: Float[ArrayLike, "40"], growth: float = GROWTH, final: float | None = None
 ) -> Problem | Records:
     """``problem`` as the output-error fit simulates it at ``theta``: restarts from :func:`restart_interval`
-    (``growth``), every run from its least-squares initial state (each record's own, for
-    :class:`~jaxheli.problem.Records`)."""
+    (``growth``), at most ``final`` s apart where given, every run from its least-squares initial state (each
+    record's own, for :class:`~jaxheli.problem.Records`)."""
     theta = np.asarray(theta, dtype=np.float64)
     if isinstance(problem, Records):
-        return Records(tuple(output_error_problem(part, theta, growth) for part in problem.parts))
-    return _runs(problem, restart_interval(theta, problem.settings.g, problem.n_samples * problem.dt, growth))
+        return Records(tuple(output_error_problem(part, theta, growth, final) for part in problem.parts))
+    segment = restart_interval(theta, problem.settings.g, problem.n_samples * problem.dt, growth)
+    return in_runs(problem, final if segment is None else min(segment, final or segment))
 
 
-def _runs(problem: Problem | Records, segment: float | None) -> Problem | Records:
+def in_runs(problem: Problem | Records, segment: float | None) -> Problem | Records:
     """``problem`` simulated in runs of ``segment`` s (one run where the record is not longer), each from its
     least-squares initial state."""
     if isinstance(problem, Records):
-        return Records(tuple(_runs(part, segment) for part in problem.parts))
+        return Records(tuple(in_runs(part, segment) for part in problem.parts))
     if segment is not None and segment >= (problem.n_samples - 1) * problem.dt:
         segment = None
     return problem.variant(segment=segment, x0="estimated", simulator="scan")
@@ -110,6 +113,8 @@ def output_error(
     rtol: float = 1e-8,
     atol: float = 1e-8,
     prior: Prior | None = None,
+    final: float | None = None,
+    stop: int | None = None,
 ) -> PEMResult:
     """Fit ``problem``'s record by output error from ``start[40]`` in at most ``rounds`` rounds (see the module).
 
@@ -119,23 +124,28 @@ def output_error(
 
     ``problem``'s scored channels, hold, g and box apply (its restarts and initial states are replaced; each
     record of a :class:`~jaxheli.problem.Records` gets its own); ``solver``, ``max_steps`` (per round), ``free``,
-    ``rtol``, ``atol``, ``prior`` as in :func:`jaxheli.optim.pem.pem`. The result's ``rss_start`` / ``cost_start`` are those
+    ``rtol``, ``atol``, ``prior`` as in :func:`jaxheli.optim.pem.pem`; ``final`` (s) caps every run (default: none;
+    the ladder keeps its caps below it); ``stop`` ends the fit after that many of the ``rounds`` rounds (the
+    schedule stays that of ``rounds``). The result's ``rss_start`` / ``cost_start`` are those
     of the first round's simulation, ``rss`` / ``cost`` those of the last; ``settings["rounds"]`` lists each
-    round's restart intervals, sums of squares, steps and solver result. Never worse than the start on any
-    round's objective.
+    round's restart intervals, sums of squares, steps, solver result and parameters at its end. Never worse than
+    the start on any round's objective.
     """
     if rounds < 1:
         raise ValueError(f"output_error: rounds must be >= 1, got {rounds}")
+    if final is not None and not final > 0:
+        raise ValueError(f"output_error: final run length must be positive, got {final} s")
+    caps = tuple(c for c in LADDER if final is None or c < final)
     thetas = np.asarray(start, dtype=np.float64).reshape(-1, np.shape(start)[-1])
     results: list[PEMResult] = []
     history: list[dict[str, Any]] = []
-    for k in range(rounds):
-        ladder = k < len(LADDER) and k < rounds - 1
-        runs = _runs(problem, LADDER[k]) if ladder else None
+    for k in range(rounds if stop is None else min(stop, rounds)):
+        ladder = k < len(caps) and k < rounds - 1
+        runs = in_runs(problem, caps[k]) if ladder else None
         race = len(thetas) > 1 and max_steps > RACE_STEPS
         tried = []
         for theta in thetas:
-            chosen = runs if ladder else output_error_problem(problem, theta)
+            chosen = runs if ladder else output_error_problem(problem, theta, final=final)
             steps = RACE_STEPS if race else max_steps
             tried.append((fit(chosen, theta, "pem", solver, steps, free, rtol, atol, prior), chosen))
         res, chosen = min(tried, key=lambda pair: pair[0].rss)
@@ -145,6 +155,7 @@ def output_error(
                                       rss_start=res.rss_start, n_steps=res.n_steps + more.n_steps)
         history.append({"segment_s": [p.settings.segment for p in parts(chosen)], "ladder": ladder,
                         "rss_start": res.rss_start, "rss": res.rss, "n_steps": res.n_steps, "result": res.result,
+                        "theta": res.theta.tolist(),
                         **({"starts_rss": [r.rss for r, _ in tried]} if len(tried) > 1 else {})})
         lengths = dict.fromkeys("whole record" if r is None else f"{r:g} s" for r in history[-1]["segment_s"])
         note(f"  round {k + 1} of at most {rounds}: runs of {', '.join(lengths)}, RSS {res.rss_start:.6g} -> "

@@ -41,6 +41,8 @@ def polish(
     rtol: float = 1e-8,
     atol: float = 1e-8,
     prior: Prior | None = None,
+    final: float | None = None,
+    stop: int | None = None,
     **settings: Any,
 ) -> PEMResult:
     """Refine ``theta0[40]``, or the best of several starts ``theta0[S, 40]``, on a record (``"output-error"``
@@ -55,14 +57,16 @@ def polish(
     ``max_steps`` steps). ``cost_start`` / ``cost`` of the result are the paper's cost of the simulation
     polished before and after; ``rss_start`` / ``rss`` the normalised output-error sum of squares. ``solver``,
     ``max_steps``, ``free``, ``rtol``, ``atol``, ``prior`` (a Gaussian prior's residuals appended,
-    :mod:`jaxheli.optim.prior`) as in :func:`jaxheli.optim.pem.pem`.
+    :mod:`jaxheli.optim.prior`) as in :func:`jaxheli.optim.pem.pem`; ``final`` and ``stop`` (the output error's
+    last run length, s, and the round it stops after, e.g. as :func:`~jaxheli.optim.cross_validate.cross_validate`
+    chose them) as in :func:`~jaxheli.optim.output_error.output_error`.
     """
     if objective not in POLISH_OBJECTIVES:
         raise ValueError(f"polish: objective must be one of {POLISH_OBJECTIVES}, got {objective!r}")
     problem = fitted_problem(data, **settings)
     if objective == "output-error":
         return output_error(problem, theta0, rounds=rounds, solver=solver, max_steps=max_steps, free=free,
-                            rtol=rtol, atol=atol, prior=prior)
+                            rtol=rtol, atol=atol, prior=prior, final=final, stop=stop)
     starts = np.asarray(theta0, dtype=np.float64).reshape(-1, np.shape(theta0)[-1])
     fits = [fit(problem, start, objective, solver, max_steps, free, rtol, atol, prior) for start in starts]
     return min(fits, key=lambda res: res.cost if objective == "pearson" else res.rss)
