@@ -17,12 +17,14 @@ row 12500 (``../shared/data/README.md``), the rows ``Data_graphready.mat`` holds
 spool-up and landing on the ground, which the hover model does not describe (its first 60 % holds about 40 s of
 it). Pearson, fit % and TIC per channel (p, q, phi, theta) over 5-s runs each from its least-squares start with a per-channel bias
 (:func:`jaxheli.verify.verify`, issue 35's measure) and over one run (initial state estimated, and from rest), next to
-the paper's Table 2 model scored by the same code.
+the paper's Table 2 model scored by the same code. Every ``+polish`` method runs once per ``--cv-windows`` value:
+with the polish's last run length and stopping round chosen by leave-one-window-out cross-validation over that many
+windows of the training record (:mod:`jaxheli.optim.cross_validate`), and (0) with its full schedule.
 
 Usage::
 
     python benchmarks/identification.py synthetic [--methods iwo+freq+polish iwo+polish pem] [--noises 1 3] [--iterations 100]
-    python benchmarks/identification.py real [--methods iwo+freq+polish iwo+polish pem] [--iterations 1000]
+    python benchmarks/identification.py real [--methods iwo+freq+polish iwo+polish pem] [--iterations 1000] [--cv-windows 4 0]
 
 Writes ``rows.json`` and ``tables.md`` under ``--out`` (default ``results/identification/<part>``), after every run.
 """
@@ -187,9 +189,9 @@ def main() -> None:
                         help="sensor-noise levels, multiples of the default (synthetic)")
     parser.add_argument("--iterations", type=int, default=100, help="IWO / GA generations")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--cv-windows", nargs="+", type=int, default=[4],
+    parser.add_argument("--cv-windows", nargs="+", type=int, default=[4, 0],
                         help="real: windows of the polish's leave-one-window-out cross-validation, one run per value "
-                             "(0: the polish's full schedule; default 4)")
+                             "(0: the polish's full schedule; default 4 0, both side by side)")
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
