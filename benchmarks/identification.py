@@ -47,6 +47,7 @@ from jaxheli.gap.prepare import prepare
 from jaxheli.identify import METHODS, identify, validation_block
 from jaxheli.io.paths import data_file
 from jaxheli.model import LOWER, R50_SI, TABLE2, UPPER
+from jaxheli.spectra import estimate_frequency_response
 from jaxheli.synth.excitation import Excitation
 from jaxheli.synth.piloted import DEFAULT_EXCITATION, Pilot, piloted_flight
 from jaxheli.verify import verify
@@ -117,8 +118,28 @@ def real_flights() -> tuple[dict[str, jaxheli.FlightData], dict[str, jaxheli.Fli
     return {"A": segment, "A, first 60 %": first}, {"C": flight_c, "A, last 40 %": last}
 
 
+def _excitation(records: dict[str, jaxheli.FlightData]) -> str:
+    """Each record's stick rms and the mean partial coherence (:func:`jaxheli.spectra.estimate_frequency_response`,
+    its default Welch segment) over 0.3-3 Hz of the pairs that carry the roll and pitch responses."""
+    pairs = (("lat", "p"), ("lat", "phi"), ("lon", "q"), ("lon", "theta"))
+    lines = ["## Excitation: stick rms (normalised sticks) and mean partial coherence over 0.3-3 Hz", "",
+             "| record | s | rms lat | rms lon | rms ped | rms col | " + " | ".join(f"{i}->{o}" for i, o in pairs)
+             + " |", "|---" * (6 + len(pairs)) + "|"]
+    for label, flight in records.items():
+        outs = tuple(dict.fromkeys(o for _, o in pairs))
+        fr = estimate_frequency_response(flight.inputs, flight.select(outs).outputs, flight.dt)
+        band = (np.asarray(fr.freq) >= 0.3) & (np.asarray(fr.freq) <= 3.0)
+        coh = [float(np.mean(np.asarray(fr.coherence)[band, outs.index(o), flight.input_names.index(i)]))
+               for i, o in pairs]
+        rms = np.std(flight.inputs, axis=0)
+        lines.append(f"| {label} | {flight.duration:.1f} | " + " | ".join(f"{v:.3f}" for v in rms) + " | "
+                     + " | ".join(f"{c:.2f}" for c in coh) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def _real(args: argparse.Namespace, out: Path) -> list[dict]:
     trains, validations = real_flights()
+    excitation = _excitation({**trains, **validations})
     rows = []
     for label, validation in validations.items():
         rows.append({"train": "-", "method": "paper Table 2", "validate": label, "seconds": 0.0,
@@ -137,7 +158,7 @@ def _real(args: argparse.Namespace, out: Path) -> list[dict]:
                     rows.append({"train": train_label, "method": name, "validate": label, "seconds": seconds,
                                  "held_out": held_out, "cross_validation": chosen,
                                  **_real_scores(res.params, validation)})
-                _write(out, rows, _real_table(rows, args))
+                _write(out, rows, _real_table(rows, args) + "\n" + excitation)
                 print(f"{train_label} {name}: {seconds:.0f} s", flush=True)
     return rows
 
