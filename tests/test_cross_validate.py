@@ -81,3 +81,14 @@ def test_identify_refuses_cross_validation_it_cannot_do(flight, method, objectiv
     data = [flight, flight] if several else flight
     with pytest.raises(ValueError, match="cv_windows needs a \\+polish method on the output-error objective"):
         identify(data, method=method, polish_objective=objective, cv_windows=4, iterations=1, progress=False)
+
+
+def test_identify_polishes_with_the_schedule_the_cross_validation_chose(flight):
+    res = identify(flight, method="iwo+polish", iterations=2, cv_windows=2, polish_rounds=2, polish_steps=3,
+                   outputs=OUTPUTS, progress=False)
+    chosen = res.polish["cross_validation"]
+    assert chosen["windows"] == 2 and res.settings["cv_windows"] == 2
+    assert list(chosen["heldout"]) == ["5 s", f"{(flight.n_samples // 2 - 1) * flight.dt:.4g} s"]
+    rounds = res.polish["rounds"]
+    assert len(rounds) <= chosen["rounds"]  # stopped where the cross-validation said
+    assert all(s <= chosen["final_s"] + 1e-9 for s in rounds[-1]["segment_s"])  # runs capped at the chosen length

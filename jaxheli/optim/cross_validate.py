@@ -33,7 +33,8 @@ from .prior import Prior
 FINALS: tuple[float | None, ...] = (5.0, 20.0, None)
 """Run lengths, s, of the polish's last rounds that the cross-validation chooses among (``None``: as long as the
 data allow). Only lengths a fold can test are tried: each at most a window long (a fold's records are windows), so
-a "whole record" of the folds is one window, and the whole-flight fit that follows caps its runs there too."""
+a "whole record" of the folds is one window, and the whole-flight fit that follows caps its runs there too; a length
+within :data:`RUN_S` of the window's is taken as the window's (no run of a few samples at a window's end)."""
 
 RUN_S = 5.0
 """Length, s, of the runs a left-out window is scored over (:func:`jaxheli.verify.verify`'s default)."""
@@ -118,7 +119,7 @@ def cross_validate(
     there."""
     cut = windows(flight, count)
     span = (cut[0].n_samples - 1) * flight.dt
-    lengths = sorted({span if f is None else min(f, span) for f in finals})
+    lengths = sorted({span if f is None or f > span - RUN_S else f for f in finals})
     parts = [make_problem(w, settings) for w in cut]
     scored = [in_runs(p.variant(x0="estimated"), RUN_S) for p in parts]
     folds: dict[str, list[list[float]]] = {_label(f): [] for f in lengths}
