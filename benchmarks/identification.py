@@ -149,10 +149,11 @@ def _real(args: argparse.Namespace, out: Path) -> list[dict]:
             for cv in args.cv_windows if method.endswith("+polish") else [0]:
                 t0 = time.perf_counter()
                 res = identify(train, method=method, iterations=args.iterations, seed=args.seed, cv_windows=cv,
-                               progress=False)
+                               prior=args.prior, prior_sd=args.prior_sd, progress=False)
                 seconds = time.perf_counter() - t0
                 chosen = (res.polish or {}).get("cross_validation")
                 name = method if not cv else f"{method}, cv {cv}: {chosen['final_s']:.3g} s x {chosen['rounds']}"
+                name += f", prior {args.prior} {args.prior_sd:g} %" if args.prior else ""
                 for label, validation in validations.items():
                     held_out = not (train_label == "A" and label.startswith("A,"))
                     rows.append({"train": train_label, "method": name, "validate": label, "seconds": seconds,
@@ -213,6 +214,9 @@ def main() -> None:
     parser.add_argument("--cv-windows", nargs="+", type=int, default=[4, 0],
                         help="real: windows of the polish's leave-one-window-out cross-validation, one run per value "
                              "(0: the polish's full schedule; default 4 0, both side by side)")
+    parser.add_argument("--prior", default=None, metavar="MODEL",
+                        help="real: a prior model for PEM and the polish (as `jaxheli identify --prior`, e.g. table2)")
+    parser.add_argument("--prior-sd", type=float, default=50.0, metavar="PCT", help="the prior's sd, %% of each value")
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
