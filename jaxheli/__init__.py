@@ -51,6 +51,7 @@ from .optim import GA as GA, IWO as IWO, minimize as minimize, minimize_trials a
 from .distributed import minimize_trials_distributed as minimize_trials_distributed
 from .optim import pem as pem, polish as polish, standard_errors as standard_errors
 from .optim import Prior as Prior, determine_structure as determine_structure
+from .optim import CrossValidation as CrossValidation, cross_validate as cross_validate
 from .optim import cramer_rao_coverage as cramer_rao_coverage, output_error as output_error
 from .sim.population import PopulationCost as PopulationCost, population_cost as population_cost
 from .bounds import Bounds as Bounds

@@ -1,8 +1,9 @@
 """Identification engines: IWO and GA (ask/tell population optimisers), PEM and gradient polish
 (optimistix least squares), the run driver (chunked scan, checkpoints, vmapped trials), uncertainty, a Gaussian
-prior of the local fits and the model-structure determination."""
+prior of the local fits, the model-structure determination and the polish's cross-validation."""
 
 from ._base import AbstractPopulationOptimizer as AbstractPopulationOptimizer, Candidates as Candidates
+from .cross_validate import CrossValidation as CrossValidation, cross_validate as cross_validate
 from .ga import GA as GA, GAState as GAState
 from .iwo import IWO as IWO, IWOState as IWOState
 from .output_error import output_error as output_error, output_error_problem as output_error_problem
