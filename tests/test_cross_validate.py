@@ -6,8 +6,8 @@ import pytest
 
 from jaxheli.identify import identify
 from jaxheli.model import TABLE2, params_array
-from jaxheli.optim.cross_validate import RUN_S, cross_validate, windows
-from jaxheli.optim.output_error import output_error
+from jaxheli.optim.cross_validate import RUN_S, _heldout_error, cross_validate, windows
+from jaxheli.optim.output_error import in_runs, output_error
 from jaxheli.problem import Records, Settings, make_problem
 from jaxheli.synth.excitation import Excitation
 from jaxheli.synth.piloted import piloted_flight
@@ -92,3 +92,11 @@ def test_identify_polishes_with_the_schedule_the_cross_validation_chose(flight):
     rounds = res.polish["rounds"]
     assert len(rounds) <= chosen["rounds"]  # stopped where the cross-validation said
     assert all(s <= chosen["final_s"] + 1e-9 for s in rounds[-1]["segment_s"])  # runs capped at the chosen length
+
+
+def test_a_diverging_model_scores_the_worst_held_out_error_not_nan(flight):
+    window = in_runs(make_problem(windows(flight, 2)[0], Settings(outputs=OUTPUTS)), RUN_S)
+    sane = float(_heldout_error(window, np.asarray(TABLE2)))
+    for bad in (np.full(40, np.nan), params_array({"Xu": 1e6}, TABLE2)):
+        worst = float(_heldout_error(window, bad))
+        assert np.isfinite(worst) and worst > 1e6 * sane

@@ -49,8 +49,8 @@ class CrossValidation:
         final: the chosen run length, s (at most a window long).
         rounds: the chosen number of rounds.
         heldout: per run length tried (``"5 s"``, ``"20 s"``, a window's length), the mean over folds of the held-out
-            normalised squared error after each round (``inf`` where a fold's model diverged); a fold that stopped
-            early keeps its last round's score for the later rounds.
+            normalised squared error after each round (huge, never NaN, where a fold's model diverged); a fold that
+            stopped early keeps its last round's score for the later rounds.
         folds: per run length, each fold's held-out error after each round ``[W][rounds]``.
     """
 
@@ -88,9 +88,9 @@ def windows(flight: FlightData, count: int) -> list[FlightData]:
 
 @quick_jit
 def _heldout_error(problem: Problem, theta: Float[Array, "40"]) -> Float[Array, ""]:
-    """Mean normalised squared output error of ``theta`` on ``problem``; ``inf`` where not finite."""
-    err = jnp.mean(pem_residuals(problem, problem.sim(theta)) ** 2)
-    return jnp.where(jnp.isfinite(err), err, jnp.inf)
+    """Mean normalised squared output error of ``theta`` on ``problem`` (PEM's divergence-safe residuals: a model
+    that diverges scores a huge error, never NaN)."""
+    return jnp.mean(pem_residuals(problem, problem.sim(theta)) ** 2)
 
 
 def _label(final: float) -> str:
