@@ -29,7 +29,7 @@ from .cost import SearchCost
 from .data.flight import FlightData, constant_outputs, default_outputs
 from .evaluate import evaluate, resolve_params, search_cost_of
 from .model import G_SI, LOWER, PARAM_NAMES, UPPER
-from .optim.cross_validate import CrossValidation, cross_validate
+from .optim.cross_validate import CrossValidation, check_windows, cross_validate
 from .optim.frequency_fit import FrequencyFitResult, IncoherentFlight, cifer_report, frequency_fit
 from .optim.ga import GA
 from .optim.iwo import IWO
@@ -232,6 +232,8 @@ def identify(
                            and isinstance(data, FlightData)):
         raise ValueError("cv_windows needs a +polish method on the output-error objective and one training flight "
                          f"(not several, not a Problem); got {method!r}, {polish_objective!r}, {type(data).__name__}")
+    if cv_windows:
+        check_windows(data, cv_windows)
     local_fit = _local_fit(method, polish_objective) if structure else None
     belief = None if prior is None else Prior.from_percent(resolve_params(prior), prior_sd)
     given = {"outputs": outputs, "segment": segment, "hold": hold, "g": g, "lower": lower, "upper": upper,

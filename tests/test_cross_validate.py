@@ -83,6 +83,11 @@ def test_identify_refuses_cross_validation_it_cannot_do(flight, method, objectiv
         identify(data, method=method, polish_objective=objective, cv_windows=4, iterations=1, progress=False)
 
 
+def test_identify_refuses_windows_too_short_before_any_search(flight):
+    with pytest.raises(ValueError, match="5 windows of 40.2 s leave 8 s each; cross-validation needs >= 2 windows of >= 10 s"):
+        identify(flight, method="iwo+polish", cv_windows=5, iterations=10**6, progress=False)
+
+
 def test_identify_polishes_with_the_schedule_the_cross_validation_chose(flight):
     res = identify(flight, method="iwo+polish", iterations=2, cv_windows=2, polish_rounds=2, polish_steps=3,
                    outputs=OUTPUTS, progress=False)

@@ -75,13 +75,20 @@ class CrossValidation:
                 "folds": self.folds}
 
 
-def windows(flight: FlightData, count: int) -> list[FlightData]:
-    """``flight`` cut into ``count`` contiguous windows of equal length (the last ``N mod count`` samples left out,
-    so that every fold's records share one compiled solver)."""
+def check_windows(flight: FlightData, count: int) -> int:
+    """The samples in each of ``count`` windows of ``flight``; raises naming the flight where there are fewer than
+    two windows or a window is shorter than two scoring runs."""
     size = flight.n_samples // count
     if count < 2 or size * flight.dt < 2 * RUN_S:
         raise ValueError(f"{flight.source}: {count} windows of {flight.duration:.3g} s leave "
                          f"{size * flight.dt:.3g} s each; cross-validation needs >= 2 windows of >= {2 * RUN_S:g} s")
+    return size
+
+
+def windows(flight: FlightData, count: int) -> list[FlightData]:
+    """``flight`` cut into ``count`` contiguous windows of equal length (the last ``N mod count`` samples left out,
+    so that every fold's records share one compiled solver); checked as :func:`check_windows` says."""
+    size = check_windows(flight, count)
     return [flight.replace(time=flight.time[a:a + size], inputs=flight.inputs[a:a + size],
                            outputs=flight.outputs[a:a + size]) for a in range(0, count * size, size)]
 
