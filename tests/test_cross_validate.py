@@ -37,8 +37,9 @@ def test_windows_are_equal_contiguous_and_checked(flight):
     np.testing.assert_array_equal(parts[2].outputs, flight.outputs[2 * size:3 * size])
     with pytest.raises(ValueError, match="cross-validation needs >= 2 windows"):
         windows(flight, 5)  # 8 s windows: shorter than two scoring runs
-    with pytest.raises(ValueError, match="cross-validation needs >= 2 windows"):
-        windows(flight, 1)
+    for count in (1, 0, -2):
+        with pytest.raises(ValueError, match="cross-validation needs >= 2 windows"):
+            windows(flight, count)
 
 
 def test_the_choice_is_the_least_held_out_error_and_its_folds_match_a_numpy_reference(flight, start):

@@ -6,9 +6,10 @@ shorter runs or after fewer rounds, and only data it was not fitted on can say s
 ``W`` windows of equal length; for each window in turn the polish is run on the other ``W - 1`` (each its own
 record with its own initial states, :class:`~jaxheli.problem.Records`) once per run length of :data:`FINALS`,
 and the parameters after every round are scored on the window left out: the mean over its channels of the
-normalised squared output error over runs of :data:`RUN_S` s, each from its least-squares initial state (the
-measure of :func:`jaxheli.verify.verify`, whose fit % is ``100 (1 - sqrt(nmse))``). The run length and stopping
-round of lowest mean held-out error over the windows are chosen; the caller fits the whole flight with them.
+normalised squared output error over runs of :data:`RUN_S` s, each from its least-squares initial state (the runs
+of :func:`jaxheli.verify.verify`, without its per-channel bias; fit % is ``100 (1 - sqrt(nmse))``). The run length
+and stopping round of lowest mean held-out error over the windows are chosen; the caller fits the whole flight with
+them.
 """
 
 from __future__ import annotations
@@ -78,7 +79,7 @@ class CrossValidation:
 def check_windows(flight: FlightData, count: int) -> int:
     """The samples in each of ``count`` windows of ``flight``; raises naming the flight where there are fewer than
     two windows or a window is shorter than two scoring runs."""
-    size = flight.n_samples // count
+    size = flight.n_samples // max(count, 1)
     if count < 2 or size * flight.dt < 2 * RUN_S:
         raise ValueError(f"{flight.source}: {count} windows of {flight.duration:.3g} s leave "
                          f"{size * flight.dt:.3g} s each; cross-validation needs >= 2 windows of >= {2 * RUN_S:g} s")
