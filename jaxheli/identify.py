@@ -228,11 +228,11 @@ def identify(
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if trials < 1 or iterations < 1:
         raise ValueError(f"trials and iterations must be >= 1, got {trials}, {iterations}")
-    if cv_windows and not (method.endswith("+polish") and polish_objective == "output-error"
-                           and isinstance(data, FlightData)):
-        raise ValueError("cv_windows needs a +polish method on the output-error objective and one training flight "
-                         f"(not several, not a Problem); got {method!r}, {polish_objective!r}, {type(data).__name__}")
     if cv_windows:
+        if not (method.endswith("+polish") and polish_objective == "output-error" and isinstance(data, FlightData)):
+            raise ValueError("cv_windows needs a +polish method on the output-error objective and one training "
+                             f"flight (not several, not a Problem); got {method!r}, {polish_objective!r}, "
+                             f"{type(data).__name__}")
         check_windows(data, cv_windows)
     local_fit = _local_fit(method, polish_objective) if structure else None
     belief = None if prior is None else Prior.from_percent(resolve_params(prior), prior_sd)

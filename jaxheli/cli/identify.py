@@ -51,7 +51,7 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     p.add_argument("--polish-rounds", type=int, default=4,
                    help="output-error polish: at most this many rounds, the first on 5 s then 20 s runs (default 4)")
     p.add_argument("--cv-windows", type=int, default=0, metavar="W",
-                   help="output-error polish on one flight: choose its last run length (5 s, 20 s, whole record) "
+                   help="output-error polish on one flight: choose its last run length (5 s, 20 s, a window's length) "
                         "and stopping round by leave-one-window-out cross-validation over W windows of the flight "
                         "(W fits of each run length, each on W - 1 windows; default 0: the full schedule)")
     p.add_argument("--box", choices=BOXES, default="authors",

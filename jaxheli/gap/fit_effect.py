@@ -161,8 +161,8 @@ def _fit_row(
     bound: int,
     theta_box: Bounds | None,
 ) -> tuple[Array, ...]:
-    """One candidate row's fit of at most ``limit`` steps (``bound`` the compiled limit, :func:`~jaxheli.optim.boxed_lm.step_bound`):
-    :class:`EffectFit`'s fields without the leading axis."""
+    """One candidate row's fit of at most ``limit`` steps (``bound`` the compiled limit,
+    :func:`~jaxheli.optim.boxed_lm.step_bound`): :class:`EffectFit`'s fields without the leading axis."""
     joint = theta_box is not None
     box = Bounds(jnp.concatenate([theta_box.lower, lo]), jnp.concatenate([theta_box.upper, hi])) if joint \
         else Bounds(lo, hi)

@@ -26,6 +26,7 @@ from .._types import Array, ArrayLike, Float
 from .._xla import quick_jit
 from ..bounds import Free
 from ..data.flight import FlightData
+from ..data.preprocess import trim
 from ..problem import Problem, Records, Settings, make_problem
 from .output_error import in_runs, output_error
 from .pem import Solver, pem_residuals
@@ -90,8 +91,7 @@ def windows(flight: FlightData, count: int) -> list[FlightData]:
     """``flight`` cut into ``count`` contiguous windows of equal length (the last ``N mod count`` samples left out,
     so that every fold's records share one compiled solver); checked as :func:`check_windows` says."""
     size = check_windows(flight, count)
-    return [flight.replace(time=flight.time[a:a + size], inputs=flight.inputs[a:a + size],
-                           outputs=flight.outputs[a:a + size]) for a in range(0, count * size, size)]
+    return [trim(flight, drop_samples=(a, flight.n_samples - a - size)) for a in range(0, count * size, size)]
 
 
 @quick_jit

@@ -88,8 +88,9 @@ def output_error_problem(
     theta = np.asarray(theta, dtype=np.float64)
     if isinstance(problem, Records):
         return Records(tuple(output_error_problem(part, theta, growth, final) for part in problem.parts))
-    segment = restart_interval(theta, problem.settings.g, problem.n_samples * problem.dt, growth)
-    return in_runs(problem, final if segment is None else min(segment, final or segment))
+    caps = [s for s in (restart_interval(theta, problem.settings.g, problem.n_samples * problem.dt, growth), final)
+            if s is not None]
+    return in_runs(problem, min(caps, default=None))
 
 
 def in_runs(problem: Problem | Records, segment: float | None) -> Problem | Records:
