@@ -148,10 +148,10 @@ def output_error(
         for theta in thetas:
             chosen = runs if ladder else output_error_problem(problem, theta, final=final)
             steps = RACE_STEPS if race else max_steps
-            tried.append((fit(chosen, theta, "pem", solver, steps, free, rtol, atol, prior), chosen))
+            tried.append((fit(chosen, theta, "pem", solver, steps, free, rtol, atol, prior, max_steps), chosen))
         res, chosen = min(tried, key=lambda pair: pair[0].rss)
         if race and not res.success:
-            more = fit(chosen, res.theta, "pem", solver, max_steps - RACE_STEPS, free, rtol, atol, prior)
+            more = fit(chosen, res.theta, "pem", solver, max_steps - RACE_STEPS, free, rtol, atol, prior, max_steps)
             res = dataclasses.replace(more, theta_start=res.theta_start, cost_start=res.cost_start,
                                       rss_start=res.rss_start, n_steps=res.n_steps + more.n_steps)
         history.append({"segment_s": [p.settings.segment for p in parts(chosen)], "ladder": ladder,

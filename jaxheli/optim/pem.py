@@ -274,16 +274,19 @@ def fit(
     rtol: float,
     atol: float,
     prior: Prior | None = None,
+    bound: int | None = None,
 ) -> PEMResult:
     """Least squares on ``objective``'s residuals over the free parameters, in ``problem``'s box (shared by
     :func:`pem` and :func:`~jaxheli.optim.polish.polish`); over several records the residuals are concatenated,
     so the sums of squares (and the paper's costs reported) add. A ``prior`` (:class:`~jaxheli.optim.prior.Prior`)
     appends its residuals of the free parameters: the one place every local fit takes it; the start is kept unless
-    the answer lowers the objective with them."""
+    the answer lowers the objective with them. ``bound``: the step count whose compiled bound the solve takes
+    (default ``max_steps``; :func:`~jaxheli.optim.boxed_lm.step_bound`), so that the legs of one budget (a race's
+    steps and the leader's rest) share one program."""
     base, mask = start_vector(start, problem.bounds), problem.bounds.free_mask(free)
     boxed = _Boxed(problem, FreeAxes(problem.bounds, base, mask), objective, prior)
     raw = _solve(boxed, least_squares_solver(solver, rtol, atol, int(mask.sum())), jnp.asarray(int(max_steps)),
-                 step_bound(max_steps))
+                 step_bound(max(max_steps, bound or 0)))
     settings = {"objective": objective, "solver": solver, "max_steps": int(max_steps), "rtol": rtol, "atol": atol,
                 "simulator": [part.sim.describe() for part in parts(problem)] if isinstance(problem, Records)
                 else problem.sim.describe(), "prior": prior is not None}
