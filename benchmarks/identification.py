@@ -125,11 +125,11 @@ def _excitation(records: dict[str, jaxheli.FlightData]) -> str:
     """Each record's stick rms and the mean partial coherence (:func:`jaxheli.spectra.estimate_frequency_response`,
     its default Welch segment) over 0.3-3 Hz of the pairs that carry the roll and pitch responses."""
     pairs = (("lat", "p"), ("lat", "phi"), ("lon", "q"), ("lon", "theta"))
+    outs = tuple(dict.fromkeys(o for _, o in pairs))
     lines = ["## Excitation: stick rms (normalised sticks) and mean partial coherence over 0.3-3 Hz", "",
              "| record | s | rms lat | rms lon | rms ped | rms col | " + " | ".join(f"{i}->{o}" for i, o in pairs)
              + " |", "|---" * (6 + len(pairs)) + "|"]
     for label, flight in records.items():
-        outs = tuple(dict.fromkeys(o for _, o in pairs))
         fr = estimate_frequency_response(flight.inputs, flight.select(outs).outputs, flight.dt)
         band = (np.asarray(fr.freq) >= 0.3) & (np.asarray(fr.freq) <= 3.0)
         coh = [float(np.mean(np.asarray(fr.coherence)[band, outs.index(o), flight.input_names.index(i)]))
@@ -142,8 +142,8 @@ def _excitation(records: dict[str, jaxheli.FlightData]) -> str:
 
 def _real(args: argparse.Namespace, out: Path) -> list[dict]:
     trains, validations = real_flights()
-    excitation = _excitation({**trains, **validations})
     records = {**trains, **validations}
+    excitation = _excitation(records)
     trains = {label: records[label] for label in args.train or trains}
     rows = []
     for label, validation in validations.items():
