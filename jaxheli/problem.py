@@ -161,6 +161,14 @@ class Problem(eqx.Module):
                                  segment=settings.segment, reset=self.sim.reset, method=settings.simulator)
         return dataclasses.replace(self, sim=sim, bounds=settings.bounds, settings=settings)
 
+    def one_program(self) -> Problem:
+        """The same problem keyed for compiling apart from the restart interval of estimated runs (a run-time value
+        of the simulator, :attr:`~jaxheli.sim.simulate.Simulator.run_samples`), so a fit at every run length shares
+        one compiled program; its settings read ``segment=None`` (what it simulates is unchanged)."""
+        if self.sim.initial != "estimated":
+            return self
+        return dataclasses.replace(self, settings=self.settings.replace(segment=None))
+
     def start_from(self, x0: Float[ArrayLike, "13"]) -> Problem:
         """The same record simulated from the initial state ``x0[13]`` (its restarts unchanged)."""
         return dataclasses.replace(self, sim=self.sim.replace_x0(x0))
@@ -233,6 +241,10 @@ class Records(eqx.Module):
     def variant(self, **changes: Any) -> Records:
         """Every record under changed settings (:meth:`Problem.variant`)."""
         return Records(tuple(p.variant(**changes) for p in self.parts))
+
+    def one_program(self) -> Records:
+        """Every record keyed for compiling apart from its run length (:meth:`Problem.one_program`)."""
+        return Records(tuple(p.one_program() for p in self.parts))
 
     def population_cost(self) -> SummedCost:
         """``thetas[P, 40] -> cost[P]``: the sum of the records' search costs."""

@@ -9,8 +9,8 @@ import pytest
 from jaxheli.bounds import Bounds
 from jaxheli.identify import scores
 from jaxheli.model import R50_SI, TABLE2, build_ab, params_array
-from jaxheli.optim.output_error import (GROWTH, LADDER, RACE_STEPS, SEGMENTS, output_error, output_error_problem,
-                                       restart_interval)
+from jaxheli.optim.output_error import (GROWTH, LADDER, RACE_STEPS, SEGMENTS, in_runs, output_error,
+                                       output_error_problem, restart_interval)
 from jaxheli.optim.pem import residuals
 from jaxheli.optim.polish import polish
 from jaxheli.optim.uncertainty import cramer_rao_coverage, standard_errors
@@ -127,3 +127,20 @@ def test_several_starts_race_and_the_leader_alone_finishes_the_round(flight, mon
     alone = output_error(problem, near, rounds=1, max_steps=RACE_STEPS)  # the race's leg of the near start
     assert near_rss == pytest.approx(alone.rss, rel=1e-9)
     assert res.n_steps <= RACE_STEPS + 80  # the far start's race leg is not counted
+
+
+def test_runs_of_every_length_share_one_compiled_solver(flight, monkeypatch):
+    """The run length of estimated runs is a run-time value of the simulator: fits in runs of 1 s, 2 s and one run
+    over the record trace (and compile) the solver once, and still simulate different runs."""
+    pem = importlib.import_module("jaxheli.optim.pem")
+    window = flight.replace(time=flight.time[:731], inputs=flight.inputs[:731], outputs=flight.outputs[:731])
+    problem = make_problem(window)  # a length no other test compiles for
+    traced, residual = [], pem._residual
+    monkeypatch.setattr(pem, "_residual", lambda v, boxed: traced.append(1) or residual(v, boxed))
+    fits = []
+    for segment in (1.0, 2.0, None):
+        fits.append(pem.fit(in_runs(problem, segment), TABLE2, "pem", "lm", 3, None, 1e-8, 1e-8))
+        if segment == 1.0:
+            first = len(traced)
+    assert first > 0 and len(traced) == first
+    assert len({round(f.rss_start, 6) for f in fits}) == 3

@@ -12,23 +12,29 @@ from jaxheli.sim.recursion import linear_recursion
 L, K, N, C = 23, 3, 5, 2
 
 
-def _numpy(M, G, v, x0, reverse, keep):
+CUT = np.ones(L)
+CUT[[4, 11, 12]] = 0.0  # steps that start afresh (runs of one recursion)
+
+
+def _numpy(M, G, v, x0, reverse, keep, carry=None):
     """The recursion by a Python loop over the steps."""
     out, x = np.zeros(v.shape[:-1] + (M.shape[0],)), np.array(x0)
+    carry = np.ones(L) if carry is None else carry
     for m in (range(L - 1, -1, -1) if reverse else range(L)):
-        x = x @ M + v[m] @ G
+        x = carry[m] * (x @ M) + v[m] @ G
         out[m] = x
     return out if keep is None else out[..., list(keep)]
 
 
-def _plain(M, G, v, x0, reverse, keep):
+def _plain(M, G, v, x0, reverse, keep, carry=None):
     """The same recursion as one ``lax.scan`` that JAX differentiates itself."""
 
-    def step(x, vm):
-        x = x @ M + vm @ G
+    def step(x, inputs):
+        vm, c = inputs
+        x = c * (x @ M) + vm @ G
         return x, x
 
-    out = jax.lax.scan(step, x0, v, reverse=reverse)[1]
+    out = jax.lax.scan(step, x0, (v, jnp.ones(L) if carry is None else carry), reverse=reverse)[1]
     return out if keep is None else out[..., np.array(keep)]
 
 
@@ -40,29 +46,32 @@ def _args(seed: int):
 
 @pytest.mark.parametrize("reverse", [False, True])
 @pytest.mark.parametrize("keep", [None, (4, 0, 2)])
-def test_values_equal_a_numpy_loop(reverse, keep):
+@pytest.mark.parametrize("carry", [None, CUT])
+def test_values_equal_a_numpy_loop(reverse, keep, carry):
     args = _args(0)
-    got = linear_recursion(*map(jnp.asarray, args), reverse, keep)
-    np.testing.assert_allclose(np.asarray(got), _numpy(*args, reverse, keep), rtol=1e-12, atol=1e-12)
+    got = linear_recursion(*map(jnp.asarray, args), reverse, keep, None if carry is None else jnp.asarray(carry))
+    np.testing.assert_allclose(np.asarray(got), _numpy(*args, reverse, keep, carry), rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.parametrize("reverse", [False, True])
 @pytest.mark.parametrize("keep", [None, (1, 3)])
 @pytest.mark.parametrize("which", [0, 1, 2, 3, None])
-def test_tangent_equals_jaxs_own_and_finite_differences(reverse, keep, which):
+@pytest.mark.parametrize("carry", [None, CUT])
+def test_tangent_equals_jaxs_own_and_finite_differences(reverse, keep, which, carry):
     """Each argument's tangent alone, and all together, against JAX's tangent of the plain scan and against
-    central differences of the numpy loop."""
+    central differences of the numpy loop; with the recursion cut at some steps too."""
     primals = tuple(map(jnp.asarray, _args(1)))
     rng = np.random.default_rng(2)
     tangents = tuple(jnp.asarray(rng.normal(size=p.shape)) if which in (None, i) else jnp.zeros_like(p)
                      for i, p in enumerate(primals))
-    out, dout = jax.jvp(lambda *a: linear_recursion(*a, reverse, keep), primals, tangents)
-    ref_out, ref_dout = jax.jvp(lambda *a: _plain(*a, reverse, keep), primals, tangents)
+    cut = None if carry is None else jnp.asarray(carry)
+    out, dout = jax.jvp(lambda *a: linear_recursion(*a, reverse, keep, cut), primals, tangents)
+    ref_out, ref_dout = jax.jvp(lambda *a: _plain(*a, reverse, keep, cut), primals, tangents)
     np.testing.assert_allclose(np.asarray(out), np.asarray(ref_out), rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(np.asarray(dout), np.asarray(ref_dout), rtol=1e-10, atol=1e-10)
     h = 1e-6
-    ahead = _numpy(*(np.asarray(p) + h * np.asarray(t) for p, t in zip(primals, tangents)), reverse, keep)
-    behind = _numpy(*(np.asarray(p) - h * np.asarray(t) for p, t in zip(primals, tangents)), reverse, keep)
+    ahead = _numpy(*(np.asarray(p) + h * np.asarray(t) for p, t in zip(primals, tangents)), reverse, keep, carry)
+    behind = _numpy(*(np.asarray(p) - h * np.asarray(t) for p, t in zip(primals, tangents)), reverse, keep, carry)
     np.testing.assert_allclose(np.asarray(dout), (ahead - behind) / (2 * h), rtol=1e-6, atol=1e-6)
 
 

@@ -76,7 +76,7 @@ def _summed_powers_outputs(sim, theta):
     forced = dataclasses.replace(sim, measured_states=zeros, x0=zeros[0], initial="given", reset="zero")._one(theta)
     Ad = discretize(*build_ab(theta, sim.g), sim.dt, sim.hold).Ad
     eye = jnp.eye(13, dtype=Ad.dtype)
-    sample, valid = run_layout(measured.shape[0], sim.segment_samples)
+    sample, valid = run_layout(measured.shape[0], sim.restart_samples)
     _, powers = jax.lax.scan(lambda M, _: (Ad @ M, M[idx]), eye, None, length=sample.shape[1])  # [L + 1, k, 13]
     error = jnp.concatenate([measured - forced, jnp.zeros((1, idx.size))])[sample]
     weighted = powers * weight[None, :, None]

@@ -284,7 +284,7 @@ def fit(
     (default ``max_steps``; :func:`~jaxheli.optim.boxed_lm.step_bound`), so that the legs of one budget (a race's
     steps and the leader's rest) share one program."""
     base, mask = start_vector(start, problem.bounds), problem.bounds.free_mask(free)
-    boxed = _Boxed(problem, FreeAxes(problem.bounds, base, mask), objective, prior)
+    boxed = _Boxed(problem.one_program(), FreeAxes(problem.bounds, base, mask), objective, prior)
     raw = _solve(boxed, least_squares_solver(solver, rtol, atol, int(mask.sum())), jnp.asarray(int(max_steps)),
                  step_bound(max(max_steps, bound or 0)))
     settings = {"objective": objective, "solver": solver, "max_steps": int(max_steps), "rtol": rtol, "atol": atol,

@@ -189,7 +189,7 @@ def standard_errors(
     """
     problem = fitted_problem(data, PEM_DEFAULTS, **settings)
     mask = problem.bounds.free_mask(free)
-    nuisance = sum(N_STATES * run_count(part.n_samples, part.sim.segment_samples) for part in parts(problem)
+    nuisance = sum(N_STATES * run_count(part.n_samples, part.sim.restart_samples) for part in parts(problem)
                    if part.sim.initial == "estimated")
     return from_residuals(eqx.Partial(residuals, problem), theta, free=mask, rcond=rcond, null_tol=null_tol,
                           bounds=problem.bounds, nonfinite=nonfinite, nuisance=nuisance)

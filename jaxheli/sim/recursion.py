@@ -1,4 +1,4 @@
-"""A linear recursion with constant matrices, ``x_{m+1} = x_m M + v_m G``, with a hand-written tangent.
+"""A linear recursion with constant matrices, ``x_{m+1} = c_m x_m M + v_m G``, with a hand-written tangent.
 
 Every run of the least-squares engines' simulations is such a recursion (row vectors: ``M = Ad'`` and the sticks
 through ``G = [B0 B1]'`` forward, ``M = G = Ad`` for an adjoint pass run backwards). JAX's own tangent of the
@@ -9,7 +9,8 @@ recursion is the same recursion, though,
 
 so its drive is formed for every step at once, outside the loop, in one product (a Jacobian's columns, batched by
 ``vmap``, in one matrix product), and the loop advances all the tangents with the one matrix ``M``, keeping only
-the ``keep`` columns of each state. Same numbers (``tests/test_recursion.py``). Measured (2-core CPU, 36 tangents,
+the ``keep`` columns of each state. The step's carry ``c_m`` (1 by default) cuts the recursion where it is 0: one
+recursion over a record holds several runs, each started afresh (:mod:`jaxheli.sim.shooting`). Same numbers (``tests/test_recursion.py``). Measured (2-core CPU, 36 tangents,
 the 8,001-sample default flight): the output-error residuals' Jacobian took 158 / 188 / 181 ms over 5-s runs, 20-s runs
 and one run, against 157 / 243 / 517 ms with JAX's tangent of the scan.
 """
@@ -25,39 +26,52 @@ from jax.custom_derivatives import SymbolicZero
 from .._types import Array, Float
 
 
-def _scan(M, drive, x0, reverse, keep):
-    """The states (their ``keep`` columns) after each step of ``x_{m+1} = x_m M + drive[m]``, and all columns."""
+def _scan(M, drive, carry, x0, reverse, keep):
+    """The states (their ``keep`` columns) after each step of ``x_{m+1} = carry[m] x_m M + drive[m]``, and all
+    columns."""
 
-    def step(x, d):
-        x = x @ M + d
+    def step(x, inputs):
+        d, c = inputs
+        x = c * (x @ M) + d
         return x, (x if keep is None else x[..., keep], x)
 
-    return jax.lax.scan(step, x0, drive, reverse=reverse)[1]
+    return jax.lax.scan(step, x0, (drive, carry), reverse=reverse)[1]
 
 
-@functools.partial(jax.custom_jvp, nondiff_argnums=(4, 5))
 def linear_recursion(
     M: Float[Array, "n n"], G: Float[Array, "c n"], v: Float[Array, "L *batch c"], x0: Float[Array, "*batch n"],
-    reverse: bool = False, keep: tuple[int, ...] | None = None,
+    reverse: bool = False, keep: tuple[int, ...] | None = None, carry: Float[Array, " L"] | None = None,
 ) -> Float[Array, "L *batch k"]:
-    """The states ``x_{m+1} = x_m M + v[m] G`` after each of the ``L`` steps, from ``x0`` (``*batch``: runs
+    """The states ``x_{m+1} = carry[m] x_m M + v[m] G`` after each of the ``L`` steps, from ``x0`` (``*batch``: runs
     advanced side by side), their ``keep`` columns (all with ``None``). ``reverse``: the steps run from the last
-    to the first, ``out[m] = out[m + 1] M + v[m] G`` with ``out[L] = x0`` (an adjoint pass; ``out[0]`` is its
-    final state)."""
-    return _scan(M, v @ G, x0, reverse, keep)[0]
+    to the first, ``out[m] = carry[m] out[m + 1] M + v[m] G`` with ``out[L] = x0`` (an adjoint pass; ``out[0]`` is
+    its final state). ``carry`` (default 1 at every step; not differentiated): 0 where a step starts afresh."""
+    carry = jnp.ones(v.shape[:1], M.dtype) if carry is None else carry.astype(M.dtype)
+    return _recursion(M, G, v, x0, jax.lax.stop_gradient(carry), reverse, keep)
 
 
-@functools.partial(linear_recursion.defjvp, symbolic_zeros=True)
-def _linear_recursion_jvp(reverse, keep, primals, tangents):
-    """The recursion again, ``M`` its matrix and ``[x_before, v] [dM; dG] + dv G`` its drive, formed for all steps
+@functools.partial(jax.custom_jvp, nondiff_argnums=(5, 6))
+def _recursion(M, G, v, x0, carry, reverse, keep):
+    return _scan(M, v @ G, _per_step(carry, x0), x0, reverse, keep)[0]
+
+
+def _per_step(carry: Float[Array, " L"], x0: Float[Array, "*batch n"]) -> Float[Array, "L *batch 1"]:
+    """Each step's carry, broadcast against a state."""
+    return carry.reshape(carry.shape + (1,) * x0.ndim)
+
+
+@functools.partial(_recursion.defjvp, symbolic_zeros=True)
+def _recursion_jvp(reverse, keep, primals, tangents):
+    """The recursion again, ``M`` its matrix and ``carry [x_before] dM + v dG + dv G`` its drive, formed for all steps
     at once (``x_before``: the state each step starts from)."""
-    M, G, v, x0 = primals
+    M, G, v, x0, carry = primals
     dM, dG, dv, dx0 = (jnp.zeros(t.aval.shape, t.aval.dtype) if isinstance(t, SymbolicZero) else t
-                       for t in tangents)
-    out, states = _scan(M, v @ G, x0, reverse, keep)
+                       for t in tangents[:4])
+    c = _per_step(carry, x0)
+    out, states = _scan(M, v @ G, c, x0, reverse, keep)
     first = x0[None]
     before = jnp.concatenate([states[1:], first]) if reverse else jnp.concatenate([first, states[:-1]])
-    drive = jnp.concatenate([before, v], axis=-1) @ jnp.concatenate([dM, dG])
+    drive = jnp.concatenate([c * before, v], axis=-1) @ jnp.concatenate([dM, dG])
     if not isinstance(tangents[2], SymbolicZero):
         drive = drive + dv @ G
-    return out, _scan(M, drive, dx0, reverse, keep)[0]
+    return out, _scan(M, drive, c, dx0, reverse, keep)[0]

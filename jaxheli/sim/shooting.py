@@ -19,11 +19,14 @@ Layout (the simulator's restarts): run 0 covers samples ``0 .. L`` (``m = 0 .. L
 samples (the whole record for one run). Channels the simulator cannot restart from (unmeasured, or the authors'
 stick-multiple flapping columns) get no weight.
 
-Cost: about three simulations per ``theta``, every run advanced by one linear recursion over the ``L`` steps
-(:mod:`jaxheli.sim.recursion`, whose tangent is cheap): the runs from rest, one backward (adjoint) pass that sums each
-run's right-hand side ``sum_m (C Ad^m)' W e_j[m]``, and the free response from the fitted states, added to the runs
-from rest. The Gram matrices ``sum_m (C Ad^m)' W C Ad^m`` (the same for all runs but the first and
-the last) come from ``log2 L`` doublings of 13 x 13 matrices, never from the powers at every sample.
+Cost: about three simulations per ``theta``, each one linear recursion over the whole record whose carry is cut where
+a run starts afresh (:mod:`jaxheli.sim.recursion`, whose tangent is cheap): the runs from rest, one backward (adjoint)
+pass that sums each run's right-hand side ``sum_m (C Ad^m)' W e_j[m]``, and the free response from the fitted states,
+added to the runs from rest. The Gram matrices ``sum_m (C Ad^m)' W C Ad^m`` (the same for all runs but the first and
+the last) come from ``log2 L`` doublings of 13 x 13 matrices, never from the powers at every sample. ``L`` is a
+run-time value (:attr:`~jaxheli.sim.simulate.Simulator.run_samples`), the number of runs bounded by
+:func:`run_bound`: a fit compiles one program for runs of every length (the output-error polish's 5-s, 20-s and
+whole-record rounds compiled three, about 5 s each, when the runs were advanced side by side as ``[K, L]``).
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array, Float
+from .._types import Array, Float, Int
 from ..model import build_ab, output_indices
 from .discretize import Discrete, discretize
 from .recursion import linear_recursion
@@ -69,26 +72,48 @@ def run_count(n_samples: int, segment_samples: int) -> int:
     return run_shape(n_samples, segment_samples)[0]
 
 
+SHORTEST_RUN_S = 1.0
+"""Runs at least this long (s) share one compiled simulation on a record: the number of runs is bounded by that of
+runs this long (:func:`run_bound`), the run length itself a run-time value."""
+
+
+def run_bound(n_samples: int, segment_samples: int, dt: float) -> int:
+    """The compiled bound on the number of runs: those of ``segment_samples`` or of :data:`SHORTEST_RUN_S`, the
+    more."""
+    return max(run_count(n_samples, segment_samples), run_count(n_samples, max(1, int(round(SHORTEST_RUN_S / dt)))))
+
+
 def run_states(sim: Simulator, theta: Float[Array, "40"]) -> Float[Array, "K 13"]:
     """Each run's least-squares initial state under ``theta[40]`` (the states :func:`estimated_outputs` starts
-    from), in :data:`jaxheli.model.STATE_NAMES` order."""
-    return _project(sim, theta)[1]
+    from), in :data:`jaxheli.model.STATE_NAMES` order (``sim`` concrete: its runs are counted on the host)."""
+    return _project(sim, theta)[1][: run_count(sim.inputs.shape[0], sim.restart_samples)]
 
 
 def estimated_outputs(sim: Simulator, theta: Float[Array, "40"]) -> Float[Array, "N k"]:
     """``sim``'s outputs for one ``theta[40]``, every run started from its least-squares initial state."""
     d, x0, forced = _project(sim, theta)
-    K, L = run_shape(sim.inputs.shape[0], sim.segment_samples)
+    L, carry = _steps(sim)
     idx = tuple(int(i) for i in output_indices(sim.outputs))
-    none = jnp.zeros((L, K, 0), d.Ad.dtype)
-    free = linear_recursion(d.Ad.T, jnp.zeros((0, d.Ad.shape[0]), d.Ad.dtype), none, x0, False, idx)
-    return _by_sample(forced + free, x0[0, np.array(idx)], sim.inputs.shape[0])
+    n = sim.inputs.shape[0]
+    starting = (1.0 - carry)[:, None] * x0[jnp.minimum(jnp.arange(n - 1) // L, x0.shape[0] - 1)]  # [N - 1, 13]
+    free = linear_recursion(d.Ad.T, d.Ad.T, starting, x0[0], False, idx, carry)
+    return jnp.concatenate([x0[0, np.array(idx)][None], forced + free])
 
 
-def _project(sim: Simulator, theta: Float[Array, "40"]) -> tuple[Discrete, Float[Array, "K 13"], Array]:
-    """The discrete model, each run's least-squares initial state and the runs' outputs from rest (``[L, K, k]``,
-    by step): the runs from rest, the right-hand sides by one backward (adjoint) pass over their weighted errors,
-    the Gram matrices by :func:`_power_sums`."""
+def _steps(sim: Simulator) -> tuple[Int[Array, ""], Float[Array, " N-1"]]:
+    """The run length ``L`` in steps (a run-time value) and each step's carry: 0 where the step leaves a run's first
+    sample ``jL``, ``j >= 1`` (the run starts afresh there), else 1."""
+    n = sim.inputs.shape[0]
+    L = jnp.where(sim.run_samples > 0, jnp.minimum(sim.run_samples, n - 1), n - 1)
+    step = jnp.arange(n - 1)
+    return L, ((step == 0) | (step % L != 0)).astype(sim.measured_states.dtype)
+
+
+def _project(sim: Simulator, theta: Float[Array, "40"]) -> tuple[Discrete, Float[Array, "R 13"], Array]:
+    """The discrete model, each run's least-squares initial state (``R`` = ``sim.max_runs`` rows, those past the
+    record's runs zero) and the outputs from rest of every run, one recursion over the record (``[N - 1, k]``, samples
+    1 on): the right-hand sides by one backward (adjoint) pass over the weighted errors, the Gram matrices by
+    :func:`_power_sums`."""
     idx = output_indices(sim.outputs)
     measured = sim.measured_states[:, idx]
     std = jnp.std(measured, axis=0)
@@ -97,48 +122,41 @@ def _project(sim: Simulator, theta: Float[Array, "40"]) -> tuple[Discrete, Float
 
     d = discretize(*build_ab(theta, sim.g), sim.dt, sim.hold)
     n, n_x = measured.shape[0], d.Ad.shape[0]
-    K, L = run_shape(n, sim.segment_samples)
-    u = jnp.pad(sim.inputs.astype(d.Ad.dtype), ((0, K * L + 1 - n), (0, 0)))
-    sticks = jnp.concatenate([_by_step(u[:-1], K, L), _by_step(u[1:], K, L)], axis=-1)  # [L, K, 2m]
-    rest = jnp.zeros((K, n_x), d.Ad.dtype)
+    L, carry = _steps(sim)
+    K = (n - 2) // L + 1
+    u = sim.inputs.astype(d.Ad.dtype)
+    rest = jnp.zeros((n_x,), d.Ad.dtype)
     keep = tuple(int(i) for i in idx)
-    forced = linear_recursion(d.Ad.T, jnp.concatenate([d.B0.T, d.B1.T]), sticks, rest, False, keep)  # [L, K, k]
+    forced = linear_recursion(d.Ad.T, jnp.concatenate([d.B0.T, d.B1.T]), jnp.concatenate([u[:-1], u[1:]], -1), rest,
+                              False, keep, carry)  # [N - 1, k]
     C = jnp.eye(n_x, dtype=d.Ad.dtype)[idx]  # [k, 13]
-    seen = _by_step(jnp.ones((n - 1, 1), d.Ad.dtype), K, L)  # [L, K, 1]: 0 on the padding
-    errors = (_by_step(measured[1:], K, L) - forced) * seen * weight[None, None]  # W e, [L, K, k]
-    # lam_m = Ad' (lam_{m+1} + C' W e_m), backwards; lam_1 = sum_m (C Ad^m)' W e_m
-    lam = linear_recursion(d.Ad, C @ d.Ad, errors, rest, True)[0]
-    rhs = lam.at[0].add((measured[0] * weight) @ C)  # run 0 also holds step 0 (its run from rest is 0 there)
+    errors = (measured[1:] - forced) * weight[None]  # W e, samples 1 on
+    # mu_s = (c mu_{s+1} + e_{s+1} W C) Ad backwards, cut after each run's last sample: run j's sum is mu_{jL}
+    ends = ((jnp.arange(n - 1) + 1) % L != 0).astype(d.Ad.dtype)
+    mu = linear_recursion(d.Ad, C @ d.Ad, errors, rest, True, None, ends)
+    run = jnp.arange(sim.max_runs)
+    rhs = mu[jnp.minimum(run * L, n - 2)] * (run < K)[:, None]
+    rhs = rhs.at[0].add((measured[0] * weight) @ C)  # run 0 also holds step 0 (its run from rest is 0 there)
     Q = C.T @ (weight[:, None] * C)
-    full, last = _power_sums(d.Ad, Q, (L, n - 1 - (K - 1) * L))
-    gram = jnp.broadcast_to(d.Ad.T @ full @ d.Ad, (K, n_x, n_x)).at[-1].set(d.Ad.T @ last @ d.Ad).at[0].add(Q)
-    eye = jnp.eye(n_x, dtype=gram.dtype)
+    full, last = _power_sums(d.Ad, Q, jnp.stack([L, n - 1 - (K - 1) * L]), (n - 1).bit_length())
+    eye = jnp.eye(n_x, dtype=d.Ad.dtype)
+    gram = jnp.where((run == K - 1)[:, None, None], d.Ad.T @ last @ d.Ad, d.Ad.T @ full @ d.Ad)
+    gram = jnp.where((run < K)[:, None, None], gram + jnp.where((run == 0)[:, None, None], Q, 0.0), eye)
     scale = RIDGE * jnp.trace(gram, axis1=-2, axis2=-1) / n_x + jnp.finfo(gram.dtype).tiny
     x0 = jnp.linalg.solve(gram + scale[:, None, None] * eye[None], rhs[..., None])[..., 0]
     return d, x0, forced
 
 
-def _by_sample(y: Float[Array, "L K k"], first: Float[Array, " k"], n: int) -> Float[Array, "N k"]:
-    """Outputs by step of each run (:func:`_by_step`'s layout) as the record's ``n`` samples, ``first`` at 0."""
-    K, L = y.shape[1], y.shape[0]
-    return jnp.concatenate([first[None], jnp.swapaxes(y, 0, 1).reshape(K * L, -1)[: n - 1]])
-
-
-def _by_step(a: Float[Array, "M c"], K: int, L: int) -> Float[Array, "L K c"]:
-    """Rows of a record, zero-padded, as the ``L`` scan steps of each of ``K`` runs: row ``i`` is step ``i % L`` of
-    run ``i // L``."""
-    return jnp.swapaxes(jnp.pad(a, ((0, K * L - a.shape[0]), (0, 0))).reshape(K, L, -1), 0, 1)
-
-
 def _power_sums(
-    Ad: Float[Array, "13 13"], Q: Float[Array, "13 13"], lengths: tuple[int, ...]
+    Ad: Float[Array, "13 13"], Q: Float[Array, "13 13"], lengths: Int[Array, " R"], digits: int
 ) -> Float[Array, "R 13 13"]:
-    """``S(n) = sum_{m < n} (Ad^m)' Q Ad^m`` for each ``n`` of ``lengths`` (positive), by doubling
-    (``S(2a) = S(a) + (Ad^a)' S(a) Ad^a``) and one scan over the binary digits of ``n``
-    (``S(a + b) = S(a) + (Ad^a)' S(b) Ad^a``), lowest first; no power above ``Ad^n`` is formed."""
-    bits = np.array([[(n >> i) & 1 for n in lengths] for i in range(max(lengths).bit_length())], bool)  # [B, R]
-    first = jnp.asarray(bits[0])[:, None, None]
-    acc = (jnp.where(first, Q[None], 0.0), jnp.where(first, Ad[None], jnp.eye(Ad.shape[0], dtype=Ad.dtype)[None]))  # S(a), Ad^a
+    """``S(n) = sum_{m < n} (Ad^m)' Q Ad^m`` for each ``n`` of ``lengths`` (positive run-time values below
+    ``2^digits``), by doubling (``S(2a) = S(a) + (Ad^a)' S(a) Ad^a``) and one scan over the binary digits of ``n``
+    (``S(a + b) = S(a) + (Ad^a)' S(b) Ad^a``), lowest first."""
+    bits = (lengths[None, :] >> jnp.arange(max(digits, 1))[:, None]) & 1 == 1  # [B, R]
+    first = bits[0][:, None, None]
+    eye = jnp.eye(Ad.shape[0], dtype=Ad.dtype)
+    acc = (jnp.where(first, Q[None], 0.0), jnp.where(first, Ad[None], eye[None]))  # S(a), Ad^a
 
     def digit(carry, bit):
         (S, P), (S_acc, P_acc) = carry
@@ -147,5 +165,5 @@ def _power_sums(
         acc = tuple(jnp.where(bit[:, None, None], new, old) for new, old in zip(grown, (S_acc, P_acc)))
         return ((S, P), acc), None
 
-    (_, (sums, _)), _ = jax.lax.scan(digit, ((Q, Ad), acc), jnp.asarray(bits[1:]))
+    (_, (sums, _)), _ = jax.lax.scan(digit, ((Q, Ad), acc), bits[1:])
     return sums

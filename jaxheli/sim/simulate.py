@@ -23,10 +23,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import Array, Float, Params
+from .._types import Array, Float, Int, Params
 from .blocked import Blocks, Plan, blocked_rollout, choose_block, make_plan, population_discrete, run_blocks
 from .discretize import Hold, discretize
-from .shooting import estimated_outputs
+from .shooting import estimated_outputs, run_bound
 from ..data.flight import FlightData
 from ..model import FLAPPING, G_SI, MEASURABLE, N_STATES, build_ab, output_indices
 
@@ -54,6 +54,16 @@ class Simulator(eqx.Module):
     reset: Reset = eqx.field(static=True)
     method: Literal["scan", "blocked"] = eqx.field(static=True, default="scan")
     block: int = eqx.field(static=True, default=0)
+    run_samples: Int[Array, ""] = eqx.field(default_factory=lambda: jnp.asarray(0), converter=jnp.asarray)
+    """Estimated initial states: samples between restarts (0: one run), a run-time value so that every run length
+    shares one compiled simulation (``segment_samples`` is 0 then)."""
+    max_runs: int = eqx.field(static=True, default=1)
+    """Estimated initial states: the compiled bound on the number of runs (:func:`~jaxheli.sim.shooting.run_bound`)."""
+
+    @property
+    def restart_samples(self) -> int:
+        """Samples between restarts, 0 for one run (read on the host)."""
+        return int(self.run_samples) if self.initial == "estimated" else self.segment_samples
 
     def __call__(self, theta: Params) -> Float[Array, "*batch N k"]:
         theta = jnp.asarray(theta)
@@ -184,15 +194,17 @@ class Simulator(eqx.Module):
                 method = "blocked"
         else:
             method, L = "scan", 0
+        n = self.inputs.shape[0]
+        runs = (seg, 0, run_bound(n, seg, self.dt)) if initial == "estimated" else (0, seg, 1)
         return dataclasses.replace(
-            self, x0=x0_arr, outputs=tuple(outputs), g=float(g), hold=hold, initial=initial, segment_samples=seg,
-            reset=reset, method=method, block=L,
+            self, x0=x0_arr, outputs=tuple(outputs), g=float(g), hold=hold, initial=initial, segment_samples=runs[1],
+            reset=reset, method=method, block=L, run_samples=jnp.asarray(runs[0]), max_runs=runs[2],
         )
 
     def describe(self) -> dict[str, object]:
         """The settings in words and numbers, for result files."""
         if self.initial == "estimated":
-            runs = f"every {self.segment_samples * self.dt:.4g} s" if self.segment_samples > 0 else "once"
+            runs = f"every {self.restart_samples * self.dt:.4g} s" if self.restart_samples > 0 else "once"
             mode = f"multiple shooting: restart {runs} from the least-squares state (variable projection)"
         elif self.segment_samples > 0:
             mode = (
@@ -203,7 +215,7 @@ class Simulator(eqx.Module):
             mode = "single open-loop run over the whole record (the paper's simulation)"
         return {
             "mode": mode,
-            "segment_s": self.segment_samples * self.dt if self.segment_samples > 0 else None,
+            "segment_s": self.restart_samples * self.dt if self.restart_samples > 0 else None,
             "reset": self.reset if self.segment_samples > 0 else None,
             "hold": self.hold,
             "g": self.g,
