@@ -7,13 +7,16 @@ recursion is the same recursion, though,
 
     dx_{m+1} = dx_m M + [x_m, v_m] [dM; dG] + dv_m G,
 
-so its drive is formed for every step at once, outside the loop, in one product (a Jacobian's columns, batched by
-``vmap``, in one matrix product), and the loop advances all the tangents with the one matrix ``M``, keeping only
-the ``keep`` columns of each state. The step's carry ``c_m`` (1 by default) cuts the recursion where it is 0: one
-recursion over a record holds several runs, each started afresh (:mod:`jaxheli.sim.shooting`). Same numbers (``tests/test_recursion.py``). Measured (2-core CPU, 36 tangents,
-the 8,001-sample default flight): the output-error residuals' Jacobian took 158 / 188 / 181 ms over 5-s runs, 20-s runs
+so the part ``[x_m, v_m] [dM; dG]`` of its drive is formed for every step at once, outside the loop, in one product
+(a Jacobian's columns, batched by ``vmap``, in one matrix product, laid out as the loop reads it), and the loop
+advances all the tangents with the one matrix ``M``, adding ``dv_m G`` inside (formed outside, the vmapped ``dv G``
+came out in the tangents-first layout, and the sum moved twice between layouts: the output-error Jacobian below
+took 172 ms, against 141 ms so), keeping only the ``keep`` columns of each state. The step's carry ``c_m`` (1 by
+default) cuts the recursion where it is 0: one recursion over a record holds several runs, each started afresh
+(:mod:`jaxheli.sim.shooting`). Same numbers (``tests/test_recursion.py``). Measured (2-core CPU, 36 tangents, the
+8,001-sample default flight): the output-error residuals' Jacobian took 158 / 188 / 181 ms over 5-s runs, 20-s runs
 and one run, against 157 / 243 / 517 ms with JAX's tangent of the scan (runs side by side; one recursion over the
-record with cuts, 97bfe5b: 162 / 172 ms over 5-s runs and one run, 40 tangents).
+record with cuts, 40 tangents: 162 / 172 ms on 97bfe5b, 141 / 142 ms with ``dv G`` inside the loop).
 """
 
 from __future__ import annotations
@@ -27,16 +30,18 @@ from jax.custom_derivatives import SymbolicZero
 from .._types import Array, Float
 
 
-def _scan(M, drive, carry, x0, reverse, keep):
-    """The states (their ``keep`` columns) after each step of ``x_{m+1} = carry[m] x_m M + drive[m]``, and all
-    columns."""
+def _scan(M, drive, carry, x0, reverse, keep, extra=None, states=False):
+    """The states (their ``keep`` columns) after each step of ``x_{m+1} = carry[m] x_m M + drive[m]`` (``+ v[m] G``
+    with ``extra = (v, G)``, the product formed inside the loop); with ``states``, all their columns too."""
 
     def step(x, inputs):
-        d, c = inputs
-        x = c * (x @ M) + d
-        return x, (x if keep is None else x[..., keep], x)
+        d, c, *more = inputs
+        x = c * (x @ M) + d + (more[0] @ extra[1] if more else 0.0)
+        kept = x if keep is None else x[..., keep]
+        return x, ((kept, x) if states else kept)
 
-    return jax.lax.scan(step, x0, (drive, carry), reverse=reverse)[1]
+    xs = (drive, carry) if extra is None else (drive, carry, extra[0])
+    return jax.lax.scan(step, x0, xs, reverse=reverse)[1]
 
 
 def linear_recursion(
@@ -53,7 +58,7 @@ def linear_recursion(
 
 @functools.partial(jax.custom_jvp, nondiff_argnums=(5, 6))
 def _recursion(M, G, v, x0, carry, reverse, keep):
-    return _scan(M, v @ G, _per_step(carry, x0), x0, reverse, keep)[0]
+    return _scan(M, v @ G, _per_step(carry, x0), x0, reverse, keep)
 
 
 def _per_step(carry: Float[Array, " L"], x0: Float[Array, "*batch n"]) -> Float[Array, "L *batch 1"]:
@@ -69,10 +74,9 @@ def _recursion_jvp(reverse, keep, primals, tangents):
     dM, dG, dv, dx0 = (jnp.zeros(t.aval.shape, t.aval.dtype) if isinstance(t, SymbolicZero) else t
                        for t in tangents[:4])
     c = _per_step(carry, x0)
-    out, states = _scan(M, v @ G, c, x0, reverse, keep)
+    out, states = _scan(M, v @ G, c, x0, reverse, keep, states=True)
     first = x0[None]
     before = jnp.concatenate([states[1:], first]) if reverse else jnp.concatenate([first, states[:-1]])
     drive = jnp.concatenate([c * before, v], axis=-1) @ jnp.concatenate([dM, dG])
-    if not isinstance(tangents[2], SymbolicZero):
-        drive = drive + dv @ G
-    return out, _scan(M, drive, c, dx0, reverse, keep)[0]
+    extra = None if isinstance(tangents[2], SymbolicZero) else (dv, G)
+    return out, _scan(M, drive, c, dx0, reverse, keep, extra)
