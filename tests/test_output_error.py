@@ -144,3 +144,11 @@ def test_runs_of_every_length_share_one_compiled_solver(flight, monkeypatch):
             first = len(traced)
     assert first > 0 and len(traced) == first
     assert len({round(f.rss_start, 6) for f in fits}) == 3
+
+
+def test_every_run_length_the_fit_uses_is_within_the_compiled_bound():
+    """Restart intervals and ladder caps no shorter than the runs that bound the compiled run count, so no round
+    compiles a solver of its own."""
+    from jaxheli.sim.shooting import SHORTEST_RUN_S
+
+    assert min(SEGMENTS + LADDER) >= SHORTEST_RUN_S

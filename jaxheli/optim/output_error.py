@@ -41,7 +41,8 @@ GROWTH = 1e3
 """Largest growth of the fastest unstable mode over one simulated run of the rounds after the ladder."""
 
 SEGMENTS: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0, 20.0, 40.0)
-"""Restart intervals, s, an unstable model is simulated with (few values: each compiles the solver once)."""
+"""Restart intervals, s, an unstable model is simulated with (all share one compiled solver: the run length is a
+run-time value, the number of runs bounded by that of runs of :data:`jaxheli.sim.shooting.SHORTEST_RUN_S`, 1 s)."""
 
 LADDER: tuple[float, ...] = (5.0, 20.0)
 """Caps, s, on the run length of the first rounds. From a 100-generation IWO start on the 80 s Table 2 training
