@@ -15,7 +15,7 @@ from jaxheli.optim.pem import residuals
 from jaxheli.optim.polish import polish
 from jaxheli.optim.uncertainty import cramer_rao_coverage, standard_errors
 from jaxheli.problem import make_problem
-from jaxheli.sim.shooting import run_states
+from jaxheli.sim.shooting import SHORTEST_RUN_S, run_states
 from jaxheli.synth.excitation import Excitation
 from jaxheli.synth.piloted import piloted_flight
 
@@ -149,6 +149,4 @@ def test_runs_of_every_length_share_one_compiled_solver(flight, monkeypatch):
 def test_every_run_length_the_fit_uses_is_within_the_compiled_bound():
     """Restart intervals and ladder caps no shorter than the runs that bound the compiled run count, so no round
     compiles a solver of its own."""
-    from jaxheli.sim.shooting import SHORTEST_RUN_S
-
     assert min(SEGMENTS + LADDER) >= SHORTEST_RUN_S

@@ -13,8 +13,9 @@ cost (:func:`jaxheli.spectra.cifer_cost`)::
 the engines' penalty past a bound and margin (:mod:`jaxheli.optim.boxed_lm`), from ``starts`` points, one after
 another in one compiled program (``lax.map``; vmapped, every step of the four default starts cost 1.5 times the four
 steps alone, and the starts that converged early waited for the last: README's main job's fit 8.2 s against 5.5 s
-with the programs compiled, 20.1 s against 14.3 s compiling them, measured on main 9ed6a88): the given start, if any, and the best of many points drawn uniformly in the box (scoring ``J`` needs no simulation,
-so thousands cost seconds; the box's middle is a poor start: every control derivative is 0 there). The lowest
+with the programs compiled, 20.1 s against 14.3 s compiling them, measured on main 9ed6a88): the given start, if
+any, and the best of many points drawn uniformly in the box (scoring ``J`` needs no simulation, so thousands cost
+seconds; the box's middle is a poor start: every control derivative is 0 there). The lowest
 average ``J`` wins. From the authors' wide box most starts still end in local minima (phase wrapping, the yaw
 feedback loop): use several, a narrower box, or the time-domain polish afterwards.
 
@@ -205,7 +206,8 @@ def _solve(
     fitted: _Fitted, v0: Float[Array, "K n"], solver: optx.AbstractLeastSquaresSolver, max_steps: int
 ) -> tuple[Array, Array, Array, Array, Array]:
     """One least-squares solve per start, one after another; each keeps its start unless the solver lowered the
-    average ``J``. Returns ``theta [K, 40]``, average ``J`` at the start and the end ``[K]``, steps and success ``[K]``."""
+    average ``J``. Returns ``theta [K, 40]``, average ``J`` at the start and the end ``[K]``, steps and success
+    ``[K]``."""
 
     def one(v):
         sol = boxed_least_squares(_residual, solver, v, fitted, max_steps, _score)
@@ -283,8 +285,8 @@ def frequency_fit(
             :class:`~jaxheli.problem.Records` (each record its own responses; the pairs' ``J`` add).
         start: the first start ``theta[40]`` (default: every start drawn); the non-free axes stay at it (default:
             the middle of the box, the pinned values).
-        starts: number of starts ``K``, solved in one program: ``start`` if given, and the best (lowest average ``J``) of
-            ``screen`` points drawn uniformly in the box from ``seed`` (one cheap vmapped scoring).
+        starts: number of starts ``K``, solved in one program: ``start`` if given, and the best (lowest average
+            ``J``) of ``screen`` points drawn uniformly in the box from ``seed`` (one cheap vmapped scoring).
         band, min_coherence, min_bins, segment_seconds, pairs: the fitted bins (:func:`frequency_target`).
         solver, max_steps, free, rtol, atol: as in :func:`jaxheli.optim.pem.pem`.
     """
