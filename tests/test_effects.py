@@ -513,3 +513,25 @@ def test_likelihood_ratio_test_matches_the_chi2_closed_form():
     assert out.statistic == pytest.approx(stat) and out.p_value == pytest.approx(np.exp(-stat / 2))
     assert out.delta_aic == pytest.approx(4.0 - stat) and out.dof == 2
     assert lr_test(1.0, 1.0, 40.0, 0).p_value == 1.0
+
+
+def test_scores_in_groups_equal_each_pair_alone_in_one_shape(monkeypatch):
+    """:func:`jaxheli.gap.fit_effect.score` evaluates pairs :data:`SCORE_WIDTH` at a time, padding the last group:
+    every pair's gap and window energies are those it gets alone, and 11, 1 and 8 pairs call one compiled shape."""
+    from jaxheli.gap import fit_effect
+
+    pred = make_predictor(_flight(None, noise=1.0), segment=2.0, track=0.1)
+    rng = np.random.default_rng(3)
+    thetas = np.asarray(TABLE2)[None] * (1.0 + 0.05 * rng.normal(size=(11, len(TABLE2))))
+    etas = np.tile(augmented.no_effect(OUT)[None], (11, 1))
+    plain = pred.for_walks(False)  # what score() runs where no walk is fitted
+    alone = [np.concatenate([np.asarray(fit_effect._score(plain, thetas[i : i + 1], etas[i : i + 1])[k])
+                             for i in range(11)]) for k in range(2)]
+    traced, inner = [], fit_effect._score
+    monkeypatch.setattr(fit_effect, "_score", lambda *a: traced.append(a[1].shape) or inner(*a))
+    for count in (11, 1, 8):
+        got = fit_effect.score(pred, thetas[:count], etas[:count])
+        for g, want in zip(got, alone):
+            assert g.shape[0] == count
+            np.testing.assert_allclose(np.asarray(g), want[:count], rtol=1e-12)
+    assert set(traced) == {(fit_effect.SCORE_WIDTH, len(TABLE2))} and len(traced) == 2 + 1 + 1  # one shape

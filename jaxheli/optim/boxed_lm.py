@@ -247,7 +247,7 @@ def boxed_least_squares(
     options = {} if limit is None else {STEP_LIMIT: limit}
     sol = optx.least_squares(penalised, solver, u0, args=args, options=options, max_steps=max_steps, throw=False)
     if score is None:
-        loss, aux = jnp.stack([jnp.sum(penalised(u, args) ** 2) for u in (u0, sol.value)]), None
+        loss, aux = jax.vmap(lambda u: jnp.sum(penalised(u, args) ** 2))(jnp.stack([u0, sol.value])), None
     else:
         loss, aux = score(u0, sol.value, args)
     improved = jnp.all(jnp.isfinite(sol.value)) & (loss[1] <= loss[0])
