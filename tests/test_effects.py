@@ -15,6 +15,7 @@ from jaxheli.effects import plant as augmented, registry as effects
 from jaxheli.gap.kalman import _doubling, gust_filter, riccati
 from jaxheli.cost import nmse
 from jaxheli.gap.predictor import TRACKS, make_predictor, noise_variance, tune_track
+from jaxheli.gap import fit_effect
 from jaxheli.gap.fit_effect import EffectFit
 from jaxheli.gap.ranking import explains_more, predictor_pair, rank_effects, structure_leads, verdict
 from jaxheli.gap.records import Structure
@@ -518,8 +519,6 @@ def test_likelihood_ratio_test_matches_the_chi2_closed_form():
 def test_scores_in_groups_equal_each_pair_alone_in_one_shape(monkeypatch):
     """:func:`jaxheli.gap.fit_effect.score` evaluates pairs :data:`SCORE_WIDTH` at a time, padding the last group:
     every pair's gap and window energies are those it gets alone, and 11, 1 and 8 pairs call one compiled shape."""
-    from jaxheli.gap import fit_effect
-
     pred = make_predictor(_flight(None, noise=1.0), segment=2.0, track=0.1)
     rng = np.random.default_rng(3)
     thetas = np.asarray(TABLE2)[None] * (1.0 + 0.05 * rng.normal(size=(11, len(TABLE2))))

@@ -198,6 +198,11 @@ def _colour_factor(res: Float[Array, "N k"]) -> Float[Array, ""]:
     return (1.0 + r1) / (1.0 - r1)
 
 
+SCORE_WIDTH = 8
+"""Pairs :func:`score` evaluates in one call. A diagnosis scores 34, 8 and 1 pairs at its stages; compiled for each
+count, the program took about 3 s each time (60-s, 20-Hz flights), against 3-47 ms to run."""
+
+
 def score(
     pred: Predictor, thetas: Float[Array, "C 40"], etas: Float[Array, "C E"]
 ) -> tuple[Float[Array, "C k"], Float[Array, "C S"]]:
@@ -210,11 +215,6 @@ def score(
               for a in map(np.asarray, (thetas, etas))]
     groups = [_score(pred, *(a[i : i + SCORE_WIDTH] for a in padded)) for i in range(0, count, SCORE_WIDTH)]
     return tuple(jnp.asarray(np.concatenate([np.asarray(g) for g in parts])[:count]) for parts in zip(*groups))
-
-
-SCORE_WIDTH = 8
-"""Pairs :func:`score` evaluates in one call. A diagnosis scores 34, 8 and 1 pairs at its stages; compiled for each
-count, the program took about 3 s each time (60-s, 20-Hz flights), against 3-47 ms to run."""
 
 
 @eqx.filter_jit

@@ -66,9 +66,9 @@ def polish(
     polished before and after; ``rss_start`` / ``rss`` the normalised output-error sum of squares. ``solver``,
     ``max_steps``, ``free``, ``atol``, ``prior`` (a Gaussian prior's residuals appended,
     :mod:`jaxheli.optim.prior`) as in :func:`jaxheli.optim.pem.pem`, ``rtol`` (default :data:`POLISH_RTOL`) too;
-    ``final`` and ``stop`` (the output error's
-    last run length, s, and the round it stops after, e.g. as :func:`~jaxheli.optim.cross_validate.cross_validate`
-    chose them) as in :func:`~jaxheli.optim.output_error.output_error`.
+    ``final`` and ``stop`` (the output error's last run length, s, and the round it stops after, e.g. as
+    :func:`~jaxheli.optim.cross_validate.cross_validate` chose them) as in
+    :func:`~jaxheli.optim.output_error.output_error`.
     """
     if objective not in POLISH_OBJECTIVES:
         raise ValueError(f"polish: objective must be one of {POLISH_OBJECTIVES}, got {objective!r}")
