@@ -25,6 +25,7 @@ import numpy as np
 
 from ..data.flight import FlightData, FlightDataError
 from ..model import INPUT_NAMES, MEASURABLE
+from ._channels import Missing, Series, check_options, on_grid, read_channels
 from ._dataflash import Scan, check_head, scan_log
 from ._guard import guarded
 
@@ -37,9 +38,6 @@ DEFAULT_PX4: dict[str, Channel] = {
     "lat": ("RC", "C0"), "lon": ("RC", "C1"), "ped": ("RC", "C3"), "col": ("RC", "C5"),
 }
 """The authors' PX4 mapping (``data/README.md``): RC channels 1, 2, 4, 6 are ``C0 C1 C3 C5``."""
-
-_ANGLES = ("phi", "theta")
-
 
 @guarded("DataFlash/sdlog2 (pymavlink)")
 def load_log(
@@ -62,10 +60,7 @@ def load_log(
     ``metadata["warnings"]`` (or the error), not shown.
     """
     path = Path(path)
-    if missing_inputs not in ("error", "zero"):
-        raise FlightDataError(f"{path}: option 'missing_inputs': expected 'error' or 'zero', got {missing_inputs!r}")
-    if rate_hz is not None and not rate_hz > 0:
-        raise FlightDataError(f"{path}: option 'rate_hz': must be > 0 Hz, got {rate_hz}")
+    check_options(path, missing_inputs, rate_hz)
     check_head(path)
     explicit = channels is not None
     mapping = _normalise(path, DEFAULT_PX4 if channels is None else channels)
@@ -85,34 +80,16 @@ def load_log(
         raise FlightDataError(
             f"{path}: {'; '.join(problems)}; pass strict=False (--no-strict) to load the readable part"
         )
-    series, dropped, zeroed = {}, {}, []
-    for name in (*MEASURABLE, *INPUT_NAMES):
-        is_input = name in INPUT_NAMES
-        if name in mapping:
-            msg, field, scale = mapping[name]
-            why = _absent(log, msg, field)
-            if why is None:
-                series[name] = _series(path, log, msg, field, scale)
-                continue
-            where = f"channel '{name}' ({msg}.{field}): {why}"
-        elif is_input:
-            why = where = f"input '{name}' has no mapping"
-        else:
-            continue
-        if is_input and missing_inputs == "zero":
-            zeroed.append(name)
-            dropped[name] = why
-        elif is_input or explicit:
-            hint = "; pass missing_inputs='zero' (--missing-inputs zero) for zero sticks" if is_input else ""
-            raise FlightDataError(f"{path}: {where}{hint}")
-        else:
-            dropped[name] = why
-    outputs = [n for n in MEASURABLE if n in series]
-    if not outputs:
-        raise FlightDataError(f"{path}: no output channel could be read: {dropped or 'none mapped'}")
-    grid = _grid(path, series, rate_hz)
-    cols = {n: _interp(grid, *series[n], angle=n in _ANGLES) for n in series}
-    inputs = np.column_stack([cols.get(n, np.zeros(grid.size)) for n in INPUT_NAMES])
+
+    def read(name: str) -> Series:
+        msg, field, scale = mapping[name]
+        why = _absent(log, msg, field)
+        if why is not None:
+            raise Missing(why, f"channel '{name}' ({msg}.{field}): {why}")
+        return _series(path, log, msg, field, scale)
+
+    series, dropped, zeroed = read_channels(path, mapping, read, missing_inputs=missing_inputs, explicit=explicit)
+    grid, inputs, outputs, names = on_grid(path, series, dropped, rate_hz)
     meta: dict[str, Any] = {
         "reader": "mavlink",
         "file": str(path),
@@ -124,7 +101,7 @@ def load_log(
         "messages": {m: log.counts[m] for m in sorted({m for m, _, _ in mapping.values()} | {"TIME"})},
         "problems": problems,
     }
-    return FlightData(grid, inputs, np.column_stack([cols[n] for n in outputs]), tuple(outputs), str(path), meta)
+    return FlightData(grid, inputs, outputs, names, str(path), meta)
 
 
 def _normalise(path: Path, channels: Mapping[str, Channel]) -> dict[str, tuple[str, str, float]]:
@@ -168,24 +145,3 @@ def _series(path: Path, log: Scan, msg: str, field: str, scale: float) -> tuple[
         )
     last = np.r_[np.diff(t) > 0, True]
     return t[last], v[last]
-
-
-def _grid(path: Path, series: Mapping[str, tuple[np.ndarray, np.ndarray]], rate_hz: float | None) -> np.ndarray:
-    """Uniform times over the span every series covers, at ``rate_hz`` or the fastest series' median rate."""
-    start = max(t[0] for t, _ in series.values())
-    stop = min(t[-1] for t, _ in series.values())
-    dt = 1.0 / rate_hz if rate_hz is not None else min(float(np.median(np.diff(t))) for t, _ in series.values())
-    n = int(np.floor((stop - start) / dt + 1e-9)) + 1
-    if n < 2:
-        raise FlightDataError(
-            f"{path}: the mapped messages overlap for {max(stop - start, 0):.4g} s only: fewer than 2 samples at "
-            f"{1 / dt:.4g} Hz"
-        )
-    return start + dt * np.arange(n)
-
-
-def _interp(grid: np.ndarray, t: np.ndarray, v: np.ndarray, angle: bool) -> np.ndarray:
-    """Linear interpolation; angles (rad) are unwrapped first and wrapped back into (-pi, pi]."""
-    if not angle:
-        return np.interp(grid, t, v)
-    return np.angle(np.exp(1j * np.interp(grid, t, np.unwrap(v))))

@@ -39,9 +39,10 @@ from pyulog.exceptions import ULogException
 from .._types import Float
 from ..data.flight import FlightData, FlightDataError
 from ..model import INPUT_NAMES, MEASURABLE
+from ._channels import Missing, Series, check_options, on_grid, read_channels
 from ._dataflash import Scan
 from ._guard import guarded
-from .mavlink import _absent, _grid, _interp, _series
+from .mavlink import _absent, _series
 
 Spec = tuple[str, str] | tuple[str, str, float] | tuple[str, str, float, float]
 Channel = Spec | list[Spec]
@@ -73,7 +74,6 @@ _HEADER_LEN = 16
 _TYPES = frozenset(b"BFIMPQADRLCSO")  # ULog message types of the spec (and of pyulog 1.3)
 _RC_DEFAULTS = {"MIN": 1000.0, "TRIM": 1500.0, "MAX": 2000.0, "REV": 1.0, "DZ": 10.0}
 _DERIVED = re.compile(r"^(roll|pitch|yaw|body_x|body_y|body_z|rc)\((.*)\)$")
-_ANGLES = ("phi", "theta")
 
 
 class _Unavailable(Exception):
@@ -101,10 +101,7 @@ def load_ulog(
     ``metadata["problems"]``) instead of raising.
     """
     path = Path(path)
-    if missing_inputs not in ("error", "zero"):
-        raise FlightDataError(f"{path}: option 'missing_inputs': expected 'error' or 'zero', got {missing_inputs!r}")
-    if rate_hz is not None and not rate_hz > 0:
-        raise FlightDataError(f"{path}: option 'rate_hz': must be > 0 Hz, got {rate_hz}")
+    check_options(path, missing_inputs, rate_hz)
     if not (isinstance(attitude, tuple | list) and len(attitude) == 2 and all(isinstance(a, str) for a in attitude)):
         raise FlightDataError(f"{path}: option 'attitude': expected (topic, quaternion field), got {attitude!r}")
     explicit = channels is not None
@@ -124,41 +121,23 @@ def load_ulog(
             f"{path}: {'; '.join(problems)}; pass strict=False (--no-strict) to load the readable part"
         )
     params = ulog.initial_parameters
-    series, used, dropped, zeroed = {}, {}, {}, []
-    for name in (*MEASURABLE, *INPUT_NAMES):
-        is_input = name in INPUT_NAMES
-        if name not in mapping:
-            if not is_input:
+    used: dict[str, str] = {}
+
+    def read(name: str) -> Series:
+        reasons = []
+        for spec in mapping[name]:
+            try:
+                got = _channel(path, scan, params, attitude, spec)
+            except _Unavailable as exc:
+                reasons.append(f"{_label(spec)}: {exc}")
                 continue
-            why = where = f"input '{name}' has no mapping"
-        else:
-            reasons = []
-            for spec in mapping[name]:
-                try:
-                    series[name] = _channel(path, scan, params, attitude, spec)
-                except _Unavailable as exc:
-                    reasons.append(f"{_label(spec)}: {exc}")
-                    continue
-                used[name] = _label(spec)
-                break
-            if name in series:
-                continue
-            why = "; ".join(reasons)
-            where = f"channel '{name}' ({why})"
-        if is_input and missing_inputs == "zero":
-            zeroed.append(name)
-            dropped[name] = why
-        elif is_input or explicit:
-            hint = "; pass missing_inputs='zero' (--missing-inputs zero) for zero sticks" if is_input else ""
-            raise FlightDataError(f"{path}: {where}{hint}")
-        else:
-            dropped[name] = why
-    outputs = [n for n in MEASURABLE if n in series]
-    if not outputs:
-        raise FlightDataError(f"{path}: no output channel could be read: {dropped or 'none mapped'}")
-    grid = _grid(path, series, rate_hz)
-    cols = {n: _interp(grid, *series[n], angle=n in _ANGLES) for n in series}
-    inputs = np.column_stack([cols.get(n, np.zeros(grid.size)) for n in INPUT_NAMES])
+            used[name] = _label(spec)
+            return got
+        why = "; ".join(reasons)
+        raise Missing(why, f"channel '{name}' ({why})")
+
+    series, dropped, zeroed = read_channels(path, mapping, read, missing_inputs=missing_inputs, explicit=explicit)
+    grid, inputs, outputs, names = on_grid(path, series, dropped, rate_hz)
     topics = sorted({label.split(".")[0] for label in used.values()})
     meta: dict[str, Any] = {
         "reader": "ulog",
@@ -172,7 +151,7 @@ def load_ulog(
         "software": ulog.msg_info_dict.get("ver_sw", ""),
         "problems": problems,
     }
-    return FlightData(grid, inputs, np.column_stack([cols[n] for n in outputs]), tuple(outputs), str(path), meta)
+    return FlightData(grid, inputs, outputs, names, str(path), meta)
 
 
 def _normalise(path: Path, channels: Mapping[str, Channel]) -> dict[str, list[tuple[str, str, float, float]]]:
