@@ -18,10 +18,12 @@ import sys
 
 import jax
 
+from jaxheli import configure_xla
 from jaxheli.cli.gap import add_blind_parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    configure_xla()  # before the trials' worker processes start: they inherit it
     jax.config.update("jax_enable_x64", True)
     parser = argparse.ArgumentParser(prog="blind_diagnosis", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command")

@@ -7,7 +7,7 @@ The pair is the blind check's (:func:`jaxheli.benchmark.independent.independent_
 the base model a 100-step PEM fit in the authors' box, as a user would identify it; the time printed is the
 diagnosis's alone (float64, compile included; at the thresholds' step, the flights low-passed and resampled to it,
 or ``--native`` at the flights' own), then its verdict; progress lines go to stderr (``--quiet``: none).
-``--cache`` reads and writes compiled programs in the command line's cache (:func:`jaxheli.use_compile_cache`): run it
+``--cache`` reads and writes compiled programs in the command line's cache (:func:`jaxheli._compile_cache.use_compile_cache`): run it
 twice for the time of a user's second diagnosis.
 """
 
@@ -18,7 +18,9 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
-from jaxheli import reporting, use_compile_cache  # noqa: E402
+from jaxheli import configure_xla  # noqa: E402
+from jaxheli._compile_cache import use_compile_cache  # noqa: E402
+from jaxheli._progress import reporting  # noqa: E402
 from jaxheli.benchmark.blind import DEFAULT_OUTPUTS, base_model, scenario  # noqa: E402
 from jaxheli.benchmark.independent import independent_trial  # noqa: E402
 from jaxheli.gap.diagnose import diagnose  # noqa: E402
@@ -40,6 +42,7 @@ def main() -> None:
                    help="read and write compiled programs in $JAXHELI_CACHE (default: compile afresh)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     args = p.parse_args()
+    configure_xla()
     if args.cache:
         print(f"compilation cache: {use_compile_cache()}")
     where = scenario(args.seed)

@@ -72,6 +72,7 @@ def run_pair(name: str, train: jaxheli.FlightData, validate: jaxheli.FlightData,
 
 
 def main(argv: list[str] | None = None) -> int:
+    jaxheli.configure_xla()
     jax.config.update("jax_enable_x64", True)
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--lowpass", type=float, default=3.0, help="low-pass cutoff of flight A, Hz")

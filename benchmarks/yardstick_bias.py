@@ -23,7 +23,8 @@ jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
-from jaxheli import reporting  # noqa: E402
+from jaxheli import configure_xla  # noqa: E402
+from jaxheli._progress import reporting  # noqa: E402
 from jaxheli.benchmark.blind import BOXES, DEFAULT_OUTPUTS, RESTARTS, TRUTHS_SIM, scenario, trial_flights  # noqa: E402
 from jaxheli.bounds import Bounds  # noqa: E402
 from jaxheli.effects import registry as fx  # noqa: E402
@@ -63,6 +64,7 @@ def main() -> None:
     p.add_argument("--restart", choices=RESTARTS, default="filter", help="where predictions restart")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     args = p.parse_args()
+    configure_xla()
     print("| seed | training flight | training RSS truth -> re-fit | validation gap truth -> re-fit | moved |")
     print("|---|---|---|---|---|")
     for seed in args.seeds:

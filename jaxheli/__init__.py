@@ -6,10 +6,7 @@ flight-data readers (:mod:`jaxheli.io`), piloted synthetic flights (:mod:`jaxhel
 identification engines (:mod:`jaxheli.optim`, :func:`jaxheli.identify`).
 """
 
-from ._xla import configure as _configure_xla
-
-_configure_xla()
-
+from ._xla import configure_xla as configure_xla
 from .cost import fit_percent as fit_percent, metrics as metrics, paper_cost as paper_cost
 from .cost import nmse as nmse, output_error_cost as output_error_cost
 from .cost import pearson as pearson, rmse as rmse, tic as tic

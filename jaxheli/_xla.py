@@ -1,36 +1,38 @@
-"""XLA CPU settings jaxheli needs: the scheduler flag, applied on import before any JAX backend starts, and the
-compiler options of programs that run only a few times.
+"""XLA CPU settings: the scheduler flag the diagnosis's batched fits need (:func:`configure_xla`, which the command
+line applies where it starts and a library user calls before JAX's first computation), and the compiler options of
+programs that run only a few times (:func:`quick_jit`).
 
-XLA's concurrency-optimised HLO scheduler (on by default on CPU in jaxlib 0.10.2) deadlocks some programs
-that nest a vmapped ``lax.scan`` with forward-mode tangents inside a loop, such as the batched
-Levenberg-Marquardt effect fits of :mod:`jaxheli.gap.fit_effect`: every worker thread waits and the host
-waits on the result forever (seen with 8 candidates of up to 16 parameters on a 240-sample flight). A
-per-compile option does not reach it, so the flag goes into ``XLA_FLAGS``, unless the user set it; it
-takes effect only when ``jaxheli`` is imported before JAX's CPU backend is first used.
+XLA's concurrency-optimised HLO scheduler (on by default on CPU in jaxlib 0.10.2) can deadlock programs that nest
+a vmapped ``lax.scan`` with forward-mode tangents inside a loop, such as the batched Levenberg-Marquardt effect fits
+of :mod:`jaxheli.gap.fit_effect`: every worker thread waits and the host waits on the result forever. A per-compile
+option does not reach it, so the flag goes into ``XLA_FLAGS``, which XLA reads once, when its CPU backend starts.
+Importing :mod:`jaxheli` changes no environment variable.
 """
 
 from __future__ import annotations
 
 import functools
 import os
+import warnings
 from collections.abc import Callable
 from typing import Any
 
-_FLAG = "--xla_cpu_enable_concurrency_optimized_scheduler"
+FLAG = "--xla_cpu_enable_concurrency_optimized_scheduler"
+"""The XLA flag :func:`configure_xla` sets to ``false``."""
+
+_warned = False
 
 QUICK_COMPILE = {"xla_cpu_use_fusion_emitters": False}
 """``compiler_options`` of the programs that run once or for tens of steps (least-squares solves, Jacobians, one
-simulation), where compiling is most of the time: XLA CPU's fusion emitters make faster loops but take about twice
-as long to compile. Measured on the output-error polish of flight A (2-core CPU): the solve compiled in 4.5 s with
-them and 2.4 s without, and its 30 steps ran in 4.3 s against 4.5 s. The population kernel, run thousands of times,
-keeps them (1000 IWO generations: 10.3 s with, 14.0 s without). XLA CPU's own: other backends refuse them, so
-programs take them through :func:`quick_jit`."""
+simulation), where compiling is most of the time: without XLA CPU's fusion emitters a program compiles about twice
+as fast and its loops run a little slower. The population kernel, run thousands of times, keeps them. XLA CPU's own:
+other backends refuse them, so programs take them through :func:`quick_jit`."""
 
 
 def quick_jit(fun: Callable[..., Any], jit: Callable[..., Any] | None = None, **kwargs: Any) -> Callable[..., Any]:
     """``jit(fun, **kwargs)`` (default ``equinox.filter_jit``) compiled with :data:`QUICK_COMPILE` where JAX's default
     backend is the CPU and with XLA's defaults elsewhere: a GPU backend stops at an option it does not know ("No such
-    compile option", seen on an H200 with jax 0.11.2)."""
+    compile option")."""
     import equinox as eqx
     import jax
 
@@ -44,8 +46,46 @@ def quick_jit(fun: Callable[..., Any], jit: Callable[..., Any] | None = None, **
     return call
 
 
-def configure() -> None:
-    """Turn the concurrency-optimised CPU scheduler off in ``XLA_FLAGS`` (a user's own setting wins)."""
+def configure_xla() -> bool:
+    """Turn XLA CPU's concurrency-optimised scheduler off (``--xla_cpu_enable_concurrency_optimized_scheduler=false``
+    appended to ``os.environ["XLA_FLAGS"]``), which the diagnosis's batched effect fits (:mod:`jaxheli.gap`) need on
+    the CPU; a setting of the flag already in ``XLA_FLAGS`` wins. Processes started afterwards inherit it.
+
+    Call it once, before JAX's first computation: XLA reads ``XLA_FLAGS`` when its backend starts. The command line
+    calls it itself. Returns ``True`` when the flag is in ``XLA_FLAGS`` in time; ``False``, with a warning, when JAX's
+    backend had started already (then only processes started afterwards get it)."""
     flags = os.environ.get("XLA_FLAGS", "")
-    if _FLAG not in flags:
-        os.environ["XLA_FLAGS"] = f"{flags} {_FLAG}=false".strip()
+    if FLAG in flags:
+        return True
+    os.environ["XLA_FLAGS"] = f"{flags} {FLAG}=false".strip()
+    if _backend_started():
+        warnings.warn("jaxheli.configure_xla() was called after JAX's backend started: XLA_FLAGS is read when the "
+                      "backend starts, so the scheduler setting reaches only processes started from now on; call "
+                      "it before the first JAX computation", RuntimeWarning, stacklevel=2)
+        return False
+    return True
+
+
+def warn_if_unconfigured() -> None:
+    """Warn once per process when JAX computes on the CPU and ``XLA_FLAGS`` does not set the scheduler flag of
+    :func:`configure_xla` (the diagnosis's batched fits may then hang)."""
+    global _warned
+    if _warned or FLAG in os.environ.get("XLA_FLAGS", ""):
+        return
+    import jax
+
+    if jax.default_backend() != "cpu":
+        return
+    _warned = True
+    warnings.warn(f"XLA CPU's concurrency-optimised scheduler is on ({FLAG}=false is not in XLA_FLAGS): the "
+                  "diagnosis's batched fits can hang with it; call jaxheli.configure_xla() before the first JAX "
+                  "computation (the jaxheli command does)", RuntimeWarning, stacklevel=3)
+
+
+def _backend_started() -> bool:
+    """Whether JAX has started a backend in this process (``False`` where JAX cannot say)."""
+    try:
+        from jax._src.xla_bridge import backends_are_initialized
+    except ImportError:
+        return False
+    return bool(backends_are_initialized())

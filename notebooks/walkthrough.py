@@ -53,6 +53,7 @@ from jaxheli.gap.diagnose import diagnose, ranking_table, write_diagnosis
 from jaxheli.report import SECTION_IDS
 from jaxheli.results import save_result
 
+jaxheli.configure_xla()  # XLA CPU's scheduler setting the diagnosis (section 6) needs, before the first computation
 # %matplotlib inline
 OUT = Path("walkthrough")
 OUT.mkdir(exist_ok=True)

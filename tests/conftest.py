@@ -9,6 +9,9 @@ import tempfile
 # CPU's older loop emitters (the library's QUICK_COMPILE for its few-run programs, jaxheli/_xla.py) compile faster
 # again (tests/test_identify.py and tests/test_shooting.py: 264 s -> 207 s, one process, measured side by side).
 _FLAGS = ["--xla_backend_optimization_level=0", "--xla_cpu_use_fusion_emitters=false"]
+# The scheduler setting the diagnosis's batched fits need (jaxheli.configure_xla, which the command line applies and
+# importing jaxheli does not), here before JAX is imported; the suite's subprocesses and worker pools inherit it.
+_FLAGS.append("--xla_cpu_enable_concurrency_optimized_scheduler=false")
 if os.environ.get("PYTEST_XDIST_WORKER"):
     # One busy thread per xdist worker: with `-n 2` on two cores, a worker that also spreads its XLA ops over
     # both cores only slows the other one down (the walkthrough notebook's kernel gets the same setting).

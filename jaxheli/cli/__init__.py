@@ -18,6 +18,7 @@ from contextlib import contextmanager
 from typing import NoReturn, TextIO
 
 from .._compile_cache import use_compile_cache
+from .._xla import configure_xla
 from .._progress import reporting
 from ._options import adopt_old_forms
 from .bench import add_bench_parser, add_trials_scaling_parser
@@ -64,6 +65,7 @@ _TIMES_COMPILATION = frozenset({"bench", "trials-scaling"})
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``jaxheli`` command."""
+    configure_xla()  # XLA_FLAGS, before JAX's backend starts (the imports above do not start it)
     args = build_parser().parse_args(argv)
     import jax
 

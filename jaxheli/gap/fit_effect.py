@@ -33,7 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, Float, Int
-from .._xla import quick_jit
+from .._xla import quick_jit, warn_if_unconfigured
 from ..bounds import Bounds
 from ..cost import nmse
 from ..effects import registry as fx
@@ -133,6 +133,7 @@ def fit_candidates(
     """Fit every candidate on ``pred``'s flight (one compiled LM solve, :func:`_fit_row`, run for each row in turn;
     ``max_steps`` is static); with ``theta_box`` the base parameters are re-identified jointly in that box (it must
     contain ``theta``), else held at ``theta``."""
+    warn_if_unconfigured()
     rows = (cand.index, cand.start, cand.lower, cand.upper)
     walk = _walk_slots(pred.outputs)
     base_walks = bool(np.any(np.asarray(base)[walk]))

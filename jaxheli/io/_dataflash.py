@@ -11,7 +11,6 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
-from pymavlink import DFReader
 
 from ..data.flight import FlightDataError
 
@@ -62,6 +61,8 @@ def check_head(path: Path) -> None:
 
 def scan_log(path: Path, wanted: Mapping[str, set[str]]) -> Scan:
     """Read every record; keep stamps and the ``wanted[message]`` fields (NaN where a record lacks one)."""
+    from pymavlink import DFReader  # here, not on import: importing pymavlink sets $MAVLINK_DIALECT
+
     # Built in two steps so that the file a failing constructor opened can still be closed (after the
     # traceback, which pins pymavlink's memoryview of the file, is gone).
     reader = DFReader.DFReader_binary.__new__(DFReader.DFReader_binary)
