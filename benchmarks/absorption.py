@@ -39,7 +39,7 @@ jax.config.update("jax_enable_x64", True)
 
 import numpy as np  # noqa: E402
 
-from jaxheli import reporting  # noqa: E402
+from jaxheli._progress import reporting  # noqa: E402
 from jaxheli._progress import stage  # noqa: E402
 from jaxheli.benchmark.blind import BOXES, DEFAULT_OUTPUTS, noise_free_pair  # noqa: E402
 from jaxheli.data.flight import FlightData  # noqa: E402

@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxheli import reporting
+from jaxheli._progress import reporting
 from jaxheli.benchmark.independent import independent_trial
 from jaxheli.cost import nmse
 from jaxheli.synth.excitation import Excitation

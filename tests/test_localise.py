@@ -10,6 +10,7 @@ import scipy.signal as ss
 
 import jaxheli
 from jaxheli.cost import nmse
+from jaxheli.model import output_matrix
 from jaxheli.spectra import estimate_frequency_response, model_frequency_response
 from jaxheli.gap.localisation_record import Localisation
 from jaxheli.gap.localise import localise
@@ -82,7 +83,7 @@ def test_model_frequency_response_matches_ss2tf_for_table2():
     outputs = ("p", "q", "phi", "theta")
     freq = np.array([0.05, 0.3, 1.0, 2.5, 7.0])
     A, B = (np.asarray(m) for m in jaxheli.build_ab(jaxheli.TABLE2))
-    C = np.asarray(jaxheli.output_matrix(outputs))
+    C = np.asarray(output_matrix(outputs))
     H = np.asarray(model_frequency_response(jaxheli.TABLE2, freq, outputs))
     for j in range(4):
         np.testing.assert_allclose(H[:, :, j], _tf_response(A, B, C, j, 2j * np.pi * freq), rtol=1e-6, atol=1e-9)
@@ -197,7 +198,7 @@ def test_localise_command_on_flight_c(shared_data, tmp_path):
     assert report["inputs"] == ["lat", "lon", "col"]  # the pedal column of flight C is zero
     flight = jaxheli.load(data)
     A, B = (np.asarray(m) for m in jaxheli.build_ab(jaxheli.TABLE2, g=9.8))
-    sysd = ss.cont2discrete((A, B, np.asarray(jaxheli.output_matrix(names)), np.zeros((4, 4))), flight.dt,
+    sysd = ss.cont2discrete((A, B, np.asarray(output_matrix(names)), np.zeros((4, 4))), flight.dt,
                             method="zoh")
     _, ref, _ = ss.dlsim(sysd, flight.inputs)
     np.testing.assert_allclose([report["channel"][n]["nmse"] for n in names],

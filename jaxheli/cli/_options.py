@@ -111,7 +111,7 @@ def add_load_options(p: argparse.ArgumentParser) -> None:
 
 def add_quiet_option(p: argparse.ArgumentParser) -> None:
     """Add ``--quiet`` to the parser of a long-running command: without it, the command writes a progress line to
-    stderr at each stage and whenever a stage runs long (:func:`jaxheli.reporting`)."""
+    stderr at each stage and whenever a stage runs long (:func:`jaxheli._progress.reporting`)."""
     p.add_argument("--quiet", action="store_true",
                    help="no progress lines on stderr (errors, warnings and the result still print)")
 

@@ -1,5 +1,5 @@
 """``jaxheli prepare --data FILE[:t0-t1] [--check] [--correct] [--trim N] [--lowpass HZ] [--resample DT]
---out FILE.npz``: the preparation chain of a flight (:func:`jaxheli.prepare`) written as an NPZ that
+--out FILE.npz``: the preparation chain of a flight (:func:`jaxheli.gap.prepare.prepare`) written as an NPZ that
 ``identify``, ``evaluate`` and ``diagnose`` read, every step recorded in its ``metadata["preprocessing"]``. The old
 ``jaxheli prepare FILE [--window T0:T1]`` is still read."""
 
