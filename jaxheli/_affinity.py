@@ -2,9 +2,8 @@
 
 XLA's CPU runtime sizes its thread pools when JAX is imported, to the cores the process may use then, and idle
 pool threads spin before they sleep. Two JAX processes sharing two cores, or one moved onto a single core after
-importing JAX, lose most of their time to those spinning threads. Measured on a 2-core CPU with a warm joint
-diagnosis of two effects (20 s flights): 3.3 s in a process started on one core, 3.5 s when it moved to one core
-before importing JAX, 52.9 s when it moved after. A process must therefore *start* on its core:
+importing JAX, lose most of their time to those spinning threads (a process moved after importing JAX ran
+about 15 times slower than one started on its core). A process must therefore *start* on its core:
 :func:`on_core` sets the core of the calling thread, and processes started inside it inherit it.
 """
 

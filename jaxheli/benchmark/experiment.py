@@ -17,8 +17,8 @@ from ..sim.simulate import make_simulator
 
 
 def iwo_buffer_slots(opt: IWO, trials: int = 1) -> int:
-    """Slots of IWO's fixed seed buffer over ``trials`` runs of ``opt`` (initial population included): what the
-    kernel scored before it skipped the padding (issue 18)."""
+    """Slots of IWO's fixed seed buffer over ``trials`` runs of ``opt`` (initial population included): what a kernel
+    that scored the buffer's padding too would score."""
     return trials * (opt.iterations * opt.max_population * opt.max_seeds + opt.initial_population)
 
 

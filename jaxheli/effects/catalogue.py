@@ -94,8 +94,8 @@ _DRIFT_TIME = 10.0
 _NO_WALK = ("m/s",)
 """Units of the channels whose bias does not walk: velocities (satellite-navigation velocity has no bias
 instability, as gyros and the attitudes integrated from them have), and within a restart segment a walking
-velocity bias and a slow wind look alike (design seeds 40-49 of Dryden turbulence: 3 of 10 named the bias candidate
-through its velocity channels; their walk slots stay 0)."""
+velocity bias and a slow wind look alike (the bias candidate would take the wind's share through the velocity
+channels); their walk slots stay 0."""
 
 _WALK_START = 0.003
 """Start of each channel's walk intensity, as a fraction of its bound: away from ``|walk| = 0``, where the filter's
@@ -174,12 +174,9 @@ PROCESS_NOISE = Effect(
 effect) and a cut ``c`` of the restart filter's white state noise (``track`` to ``track e^-|c|``, ``|c|`` up to 10:
 the filter-error method estimates the whole process-noise model; once the gusts explain the wind, the filter need
 not follow the sensors as closely as at the base model's tuned level). The cut is a nuisance: every fit frees it, so
-the effect is credited for the gusts alone, not for re-tuning the filter. A further start at a correlation time of 3 s
-(the stuck fits first seen in test seeds 5080-5099's records, the value set on design seeds): from 1 s alone, the
-joint fit left both gust parameters at their starts on 3 of the independent simulator's Dryden
-design seeds 70-79 (70, 71, 77; held-out shrink 0.7, 4.8, 4.0 %), where the 3-s start, kept by its lower training RSS,
-reached 12.0, 10.7 and 5.1 %. On held-out seeds it did not pay (README: 44 against 45 of 75 detectable trials on the
-same seeds). No plant term: the wind enters every plant
+the effect is credited for the gusts alone, not for re-tuning the filter. A further start at a correlation time of 3 s,
+kept when its training sum of squares is lower: from 1 s alone the joint fit can leave both gust parameters at their
+starts. No plant term: the wind enters every plant
 through ``E``; :func:`jaxheli.gap.kalman.gust_filter` reads this group. Injected: a flight in gusts of 0.3-0.8 m/s
 with 0.5-2 s correlation."""
 
@@ -235,10 +232,9 @@ CONTROL_SATURATION = _per_axis("control_saturation", "sat", eta_order=2, unit="1
                                bound=400.0, term=Term("command", _saturate),
                                value=lambda rng: rng.uniform(0.15, 0.3) ** -2, tries=(25.0, 90.0), together=True)
 """Saturation of the delayed sticks per axis (1/stick^2, plausible up to 400: a limit no tighter than 0.05 of full
-stick; the bound was 100 until calibration seed 101 of the independent simulator, whose travel stop at 0.08 stick was
-fitted at the bound and so not credited; further starts at 25 and 90, limits at 0.2 and 0.105 stick, on all axes and
-on each: from 25 alone, 15 LM steps left a true 90 at 25-40 on the blind check). Injected: a limit at 0.15-0.3 stick
-on one random axis."""
+stick, so that a travel stop at 0.08 stick is fitted inside the bound; further starts at 25 and 90, limits at 0.2 and
+0.105 stick, on all axes and on each: from 25 alone, the diagnosis's few LM steps leave a tight limit near its
+start). Injected: a limit at 0.15-0.3 stick on one random axis."""
 
 
 def _rotor_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:

@@ -11,9 +11,8 @@ cost (:func:`jaxheli.spectra.cifer_cost`)::
 (``J <= 100`` per pair: acceptable, ``<= 50``: excellent). Levenberg-Marquardt minimises the sum of the pairs'
 ``J`` as least squares on :func:`jaxheli.spectra.cifer_residuals`, in the unit coordinates of the bounds with
 the engines' penalty past a bound and margin (:mod:`jaxheli.optim.boxed_lm`), from ``starts`` points, one after
-another in one compiled program (``lax.map``; vmapped, every step of the four default starts cost 1.5 times the four
-steps alone, and the starts that converged early waited for the last: README's main job's fit 8.2 s against 5.5 s
-with the programs compiled, 20.1 s against 14.3 s compiling them, measured on main 9ed6a88): the given start, if
+another in one compiled program (``lax.map``: vmapped, every step of the batched starts costs more than the steps
+alone, and the starts that converged early wait for the last): the given start, if
 any, and the best of many points drawn uniformly in the box (scoring ``J`` needs no simulation, so thousands cost
 seconds; the box's middle is a poor start: every control derivative is 0 there). The lowest
 average ``J`` wins. From the authors' wide box most starts still end in local minima (phase wrapping, the yaw
@@ -55,14 +54,12 @@ ACCEPTABLE_J = 100.0
 """Average ``J`` at or below which a fit is acceptable (Tischler & Remple; ``<= 50``: excellent)."""
 
 STARTS = 4
-"""Default number of Levenberg-Marquardt starts. On README's main job (the embedded flight, 100 IWO generations)
-4 starts of up to 100 steps reached average J 427.7 against 427.6 from 8 starts of up to 200 (was the default), the
-polish after it the same model (output error 0.576204 per sample, J 22.5, 26 of 27 parameters within 3 Cramer-Rao
-standard errors of the truth), and the frequency fit took 28.5 s against 79.5 s (compiled programs cached, one run
-each, this 2-core CPU with a blind run beside it: a ratio, measured on main 1c234bd)."""
+"""Default number of Levenberg-Marquardt starts: from an IWO start, 4 starts of up to :data:`MAX_STEPS` steps reach
+the same average ``J``, and the polish after them the same model, as 8 starts of up to 200 steps, in about a third
+of the time."""
 
 MAX_STEPS = 100
-"""Default Levenberg-Marquardt step limit of each start (:data:`STARTS`; was 200: most starts used all of them)."""
+"""Default Levenberg-Marquardt step limit of each start (:data:`STARTS`)."""
 
 
 class IncoherentFlight(ValueError):

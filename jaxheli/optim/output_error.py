@@ -45,16 +45,13 @@ SEGMENTS: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0, 20.0, 40.0)
 run-time value, the number of runs bounded by that of runs of :data:`jaxheli.sim.shooting.SHORTEST_RUN_S`, 1 s)."""
 
 LADDER: tuple[float, ...] = (5.0, 20.0)
-"""Caps, s, on the run length of the first rounds. From a 100-generation IWO start on the 80 s Table 2 training
-flight of ``benchmarks/identification.py``, runs over the whole record stall at 4.5 times the truth's sum of
-squares (20,695 against 4,618); 5 s, then 20 s, then whole-record runs reach it (4,616)."""
+"""Caps, s, on the run length of the first rounds: from a population optimiser's start, runs over the whole record
+can stall far above the truth's sum of squares, where 5-s, then 20-s, then whole-record runs reach it."""
 
 
 RACE_STEPS = 20
 """Steps every start of the first round takes before the rest of the round goes to the one of least sum of squares
-alone. On README's main job (a frequency-fit start and IWO's best) the leader after 20 steps (RSS 4,616.5 against
-6,205.9) was the leader after a full round (4,595.7 against 5,458.7), so the round's second solve was time spent on the
-loser; the model after the polish is the same."""
+alone (the leader after this many steps is, in practice, the leader after a full round)."""
 
 
 def restart_interval(

@@ -78,7 +78,7 @@ def fitted_problem(
     data: FlightData | Problem | Records, defaults: dict[str, Any] | None = None, **settings: Any
 ) -> Problem | Records:
     """The problem a least-squares engine fits: :func:`~jaxheli.problem.as_problem` on the step-by-step scan
-    simulator (under linearise/vmap/transpose it compiles ~30 % faster than "blocked")."""
+    simulator (under linearise/vmap/transpose it compiles faster than "blocked")."""
     return as_problem(data, defaults, **settings).variant(simulator="scan")
 
 

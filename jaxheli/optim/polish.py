@@ -31,10 +31,8 @@ POLISH_OBJECTIVES: tuple[str, ...] = ("output-error", "pearson", "pem")
 
 POLISH_RTOL = 1e-6
 """Relative tolerance of the polish's Cauchy termination (a step below it of every unit coordinate, i.e. of the box's
-width, and a residual change below it): 1e-6 of a bound's width is far inside any parameter's standard error. On
-README's main job the polish stopped after 147 steps instead of 169 with 1e-8 (round 1: 76 against 96), the same
-sums of squares to six digits in every round (4,595.73, 4,607.36, 4,610.21), fit % and Cramer-Rao count; on flight A
-(IWO 1 x 1000) the steps hit their limit first either way (391, the same RSS)."""
+width, and a residual change below it): 1e-6 of a bound's width is far inside any parameter's standard error, and
+stops earlier than 1e-8 with the same sums of squares to six digits."""
 
 
 def polish(

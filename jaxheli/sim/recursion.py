@@ -10,13 +10,11 @@ recursion is the same recursion, though,
 so the part ``[x_m, v_m] [dM; dG]`` of its drive is formed for every step at once, outside the loop, in one product
 (a Jacobian's columns, batched by ``vmap``, in one matrix product, laid out as the loop reads it), and the loop
 advances all the tangents with the one matrix ``M``, adding ``dv_m G`` inside (formed outside, the vmapped ``dv G``
-came out in the tangents-first layout, and the sum moved twice between layouts: the output-error Jacobian below
-took 172 ms, against 141 ms so), keeping only the ``keep`` columns of each state. The step's carry ``c_m`` (1 by
-default) cuts the recursion where it is 0: one recursion over a record holds several runs, each started afresh
-(:mod:`jaxheli.sim.shooting`). Same numbers (``tests/test_recursion.py``). Measured (2-core CPU, 36 tangents, the
-8,001-sample default flight): the output-error residuals' Jacobian took 158 / 188 / 181 ms over 5-s runs, 20-s runs
-and one run, against 157 / 243 / 517 ms with JAX's tangent of the scan (runs side by side; one recursion over the
-record with cuts, 40 tangents: 162 / 172 ms on 97bfe5b, 141 / 142 ms with ``dv G`` inside the loop).
+comes out in the tangents-first layout and the sum moves twice between layouts), keeping only the ``keep`` columns
+of each state. The step's carry ``c_m`` (1 by default) cuts the recursion where it is 0: one recursion over a record
+holds several runs, each started afresh (:mod:`jaxheli.sim.shooting`). The numbers are JAX's own tangent's
+(``tests/test_recursion.py``); the Jacobian costs about the same as with JAX's tangent over short runs and a
+fraction of it over long ones, where JAX's grows with the run length.
 """
 
 from __future__ import annotations

@@ -25,8 +25,8 @@ pass that sums each run's right-hand side ``sum_m (C Ad^m)' W e_j[m]``, and the 
 added to the runs from rest. The Gram matrices ``sum_m (C Ad^m)' W C Ad^m`` (the same for all runs but the first and
 the last) come from ``log2 L`` doublings of 13 x 13 matrices, never from the powers at every sample. ``L`` is a
 run-time value (:attr:`~jaxheli.sim.simulate.Simulator.run_samples`), the number of runs bounded by
-:func:`run_bound`: a fit compiles one program for runs of every length (the output-error polish's 5-s, 20-s and
-whole-record rounds compiled three, about 5 s each, when the runs were advanced side by side as ``[K, L]``).
+:func:`run_bound`: a fit compiles one program for runs of every length (advancing the runs side by side as
+``[K, L]`` would compile one per run length).
 """
 
 from __future__ import annotations
