@@ -8,8 +8,8 @@ Write a record by running the command through this script (it times the run and 
 command wrote)::
 
     python docs/gen_benchmarks.py record main-job --kind identify --json /tmp/rd/result.json \\
-        --title "..." --measure measured --sample in-sample -- \\
-        jaxheli identify --data default --iterations 100 --out /tmp/rd
+        --title "..." --measure measured --sample in-sample \\
+        "jaxheli identify --data default --iterations 100 --out /tmp/rd"
 
 ``python docs/gen_benchmarks.py render`` prints the page; ``mkdocs build`` renders it through ``docs/hooks.py``.
 """
@@ -22,7 +22,6 @@ import json
 import math
 import os
 import platform
-import shlex
 import subprocess
 import sys
 import time
@@ -33,7 +32,7 @@ RECORDS = DOCS / "benchmarks"
 ROOT = DOCS.parent
 
 MEASURES = ("measured", "estimated")
-SAMPLES = ("in-sample", "held-out", "not applicable")
+SAMPLES = ("in-sample", "held-out", "unknown", "not applicable")
 SEEDS = ("design", "calibration", "test", "not applicable")
 
 
@@ -72,19 +71,25 @@ def machine() -> dict:
     return info
 
 
-def record(name: str, kind: str, command: list[str], json_path: Path, *, title: str, measure: str, sample: str,
-           seeds: str, note: str = "") -> dict:
-    """Run ``command``, read the JSON it writes at ``json_path`` and store it with its metadata as
-    ``docs/benchmarks/NAME.json``."""
+def record(name: str, kind: str, command: str, json_path: Path, *, title: str, measure: str, sample: str,
+           seeds: str, note: str = "", ran_s: float | None = None) -> dict:
+    """Run ``command`` (a shell command line, from the repository root), read the JSON it writes at ``json_path``
+    and store it with its metadata as ``docs/benchmarks/NAME.json``; the record keeps the command as written
+    (``$JAXHELI_DATA`` unexpanded). ``ran_s``: the command already ran on this commit, taking that long by the
+    caller's clock; its output is stored without running it again (the record says so)."""
     load_before = machine()["load_1min"]
-    start = time.perf_counter()
-    subprocess.run(command, cwd=ROOT, check=True)
-    wall = time.perf_counter() - start
+    if ran_s is None:
+        start = time.perf_counter()
+        subprocess.run(["bash", "-c", command], cwd=ROOT, check=True)
+        wall = time.perf_counter() - start
+    else:
+        wall, load_before = ran_s, None
+        note = (note + " " if note else "") + "Run before the record was written, on the same commit; its output stored."
     status = _git("status", "--porcelain", "--untracked-files=no", "--", "jaxheli", "pyproject.toml")
     rec = {
         "title": title,
         "kind": kind,
-        "command": shlex.join(command),
+        "command": command,
         "commit": _git("rev-parse", "HEAD"),
         "code_dirty": bool(status),
         "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
@@ -187,8 +192,9 @@ def render_identify(rec: dict) -> str:
     extra = []
     cr = (out.get("truth") or {}).get("cramer_rao")
     if cr:
-        extra.append(["parameters within 3 Cramer-Rao standard errors of the truth",
-                      f"{cr.get('within')} of {cr.get('identifiable')} identifiable"])
+        within, identifiable = (len(v) if isinstance(v, list) else v for v in (cr["within"], cr["identifiable"]))
+        extra.append([f"identifiable parameters within {_num(cr.get('k', 3))} Cramer-Rao standard errors of the truth",
+                      f"{within} of {identifiable}"])
     freq = out.get("frequency") or {}
     if "j_average" in freq:
         extra.append(["Tischler's J, average over the input-output pairs (<= 100 acceptable)", freq["j_average"]])
@@ -200,12 +206,17 @@ def render_identify(rec: dict) -> str:
 
 
 def render_verify(rec: dict) -> str:
-    out = rec["output"]
-    overall = out.get("overall") or {}
-    rows = [[f"`{ch}`"] + [vals.get(m) for m in ("tic", "pearson", "fit_percent", "j_rms")]
-            for ch, vals in (out.get("channels") or {}).items()]
-    rows.append(["**overall**"] + [overall.get(m) for m in ("tic", "pearson", "fit_percent", "j_rms")])
-    return _table(["channel", "TIC", "Pearson", "fit %", "J_rms"], rows)
+    """One table per verified flight: the scores pooled over its runs, per channel and overall."""
+    parts = []
+    metrics = ("tic", "pearson", "fit_percent", "j_rms")
+    for v in rec["output"]["verifications"]:
+        pooled = v["pooled"]
+        rows = [[f"`{ch}`"] + [pooled[m].get(ch) for m in metrics] for ch in v["channels"]]
+        rows.append(["**overall**"] + [pooled[m].get("overall") for m in metrics])
+        length = "the whole window" if v["run_length_s"] is None else f"{_num(v['run_length_s'])}-s runs"
+        parts.append(f"`{Path(v['source']).name}`, {len(v['runs'])} {length} (pooled):\n\n"
+                     + _table(["channel", "TIC", "Pearson", "fit %", "J_rms"], rows))
+    return "\n\n".join(parts)
 
 
 def render_bench(rec: dict) -> str:
@@ -235,7 +246,7 @@ the blind check's protocol, `jaxheli/gap/thresholds.json`). A record is re-measu
 
 ```bash
 python docs/gen_benchmarks.py record NAME --kind KIND --json OUTPUT.json --title TITLE \\
-    --measure measured --sample in-sample --seeds "not applicable" -- COMMAND...
+    --measure measured --sample in-sample --seeds "not applicable" "COMMAND"
 ```
 
 The earlier figures, with their commits, commands and conditions, are the lab notebook:
@@ -268,17 +279,16 @@ def main(argv: list[str] | None = None) -> int:
     rec.add_argument("--sample", choices=SAMPLES, required=True)
     rec.add_argument("--seeds", choices=SEEDS, default="not applicable")
     rec.add_argument("--note", default="")
-    rec.add_argument("command", nargs=argparse.REMAINDER, help="-- then the command")
+    rec.add_argument("--ran", type=float, default=None, metavar="SECONDS",
+                     help="the command already ran (taking SECONDS): store its JSON without running it again")
+    rec.add_argument("command", help="the command line, one argument (run by bash from the repository root)")
     sub.add_parser("render", help="print the page")
     args = parser.parse_args(argv)
     if args.action == "render":
         print(render(load_records()))
         return 0
-    command = args.command[1:] if args.command[:1] == ["--"] else args.command
-    if not command:
-        parser.error("record: give the command after --")
-    record(args.name, args.kind, command, args.json, title=args.title, measure=args.measure, sample=args.sample,
-           seeds=args.seeds, note=args.note)
+    record(args.name, args.kind, args.command, args.json, title=args.title, measure=args.measure, sample=args.sample,
+           seeds=args.seeds, note=args.note, ran_s=args.ran)
     return 0
 
 
