@@ -84,7 +84,7 @@ def record(name: str, kind: str, command: str, json_path: Path, *, title: str, m
         wall = time.perf_counter() - start
     else:
         wall, load_before = ran_s, None
-        note = (note + " " if note else "") + "Run before the record was written, on the same commit; its output stored."
+        note = (note + " " if note else "") + "Run before the record was written, with the code of this commit (only docs differed); its output stored."
     status = _git("status", "--porcelain", "--untracked-files=no", "--", "jaxheli", "pyproject.toml")
     rec = {
         "title": title,
@@ -133,6 +133,8 @@ def _num(value, digits: int = 3) -> str:
         return f"{value:,}"
     if not math.isfinite(value):
         return str(value)
+    if float(value).is_integer() and abs(value) < 1e6:
+        return f"{int(value):,}"
     if abs(value) >= 1000:
         return f"{value:,.0f}"
     return f"{value:.{digits}g}" if abs(value) < 1 else f"{value:.{max(digits - len(str(int(abs(value)))), 1)}f}"
@@ -153,8 +155,10 @@ def _metadata(rec: dict) -> str:
     rows = [
         ("command", f"`{rec['command']}`"),
         ("commit", f"`{rec['commit']}`{dirty}"),
-        ("machine", f"{m['processor']}, {m['cpus']} CPUs{device}, {m['system']}, Python {m['python']}{jax}; "
-                    f"load average {m.get('load_1min_before', '-')} before the run, {m.get('load_1min', '-')} after"),
+        ("machine", f"{m['processor']}, {m['cpus']} CPUs{device}, {m['system']}, Python {m['python']}{jax}; load "
+                    + (f"average {m['load_1min_before']} before the run, " if m.get("load_1min_before") is not None
+                       else "average ")
+                    + f"{m.get('load_1min', '-')} when recorded"),
         ("date", rec["date"]),
         ("label", f"**{label['measure']}**; {label['sample']}; seeds: {label['seeds']}"),
         ("wall time of the command", f"{_num(rec['wall_s'])} s (measured)"),
@@ -178,14 +182,15 @@ def render_identify(rec: dict) -> str:
         if not block:
             continue
         truth = (out.get("truth") or {}).get(split) or {}
-        header = ["channel"] + [f"model {m}" for m in ("pearson", "tic", "fit_percent")]
+        names = {"pearson": "Pearson", "tic": "TIC", "fit_percent": "fit %"}
+        header = ["channel"] + [f"model {names[m]}" for m in names]
         if truth:
-            header += [f"truth {m}" for m in ("pearson", "tic", "fit_percent")]
+            header += [f"truth {names[m]}" for m in names] + ["model - truth fit %"]
         rows = []
         for ch in block["pearson"]:
-            row = [f"`{ch}`"] + [block[m][ch] for m in ("pearson", "tic", "fit_percent")]
+            row = [f"`{ch}`"] + [block[m][ch] for m in names]
             if truth:
-                row += [truth[m][ch] for m in ("pearson", "tic", "fit_percent")]
+                row += [truth[m][ch] for m in names] + [round(block["fit_percent"][ch] - truth["fit_percent"][ch], 2)]
             rows.append(row)
         sample = "in-sample: the flight the model was fitted to" if split == "train" else "held out"
         parts.append(f"**{split}** ({sample}; fit % in percent, TIC 0 is a perfect match):\n\n" + _table(header, rows))
