@@ -160,7 +160,7 @@ def _metadata(rec: dict) -> str:
                        else "average ")
                     + f"{m.get('load_1min', '-')} when recorded"),
         ("date", rec["date"]),
-        ("label", f"**{label['measure']}**; {label['sample']}; seeds: {label['seeds']}"),
+        ("label", f"**{label['measure']}**; sample: {label['sample']}; seeds: {label['seeds']}"),
         ("wall time of the command", f"{_num(rec['wall_s'])} s (measured)"),
     ]
     if label.get("note"):
@@ -218,28 +218,15 @@ def render_verify(rec: dict) -> str:
         pooled = v["pooled"]
         rows = [[f"`{ch}`"] + [pooled[m].get(ch) for m in metrics] for ch in v["channels"]]
         rows.append(["**overall**"] + [pooled[m].get("overall") for m in metrics])
-        length = "the whole window" if v["run_length_s"] is None else f"{_num(v['run_length_s'])}-s runs"
-        parts.append(f"`{Path(v['source']).name}`, {len(v['runs'])} {length} (pooled):\n\n"
+        n = len(v["runs"])
+        length = "the whole window" if v["run_length_s"] is None else f"{_num(v['run_length_s'])} s"
+        parts.append(f"`{Path(v['source']).name}`: {n} run{'s' if n != 1 else ''} of {length}, scores pooled over them:\n\n"
                      + _table(["channel", "TIC", "Pearson", "fit %", "J_rms"], rows))
     return "\n\n".join(parts)
 
 
-def render_bench(rec: dict) -> str:
-    out = rec["output"]
-    parts = []
-    rows = [[r.get("kernel", "-"), r.get("dtype", "-"), r.get("P"), r.get("N"), r.get("evals_per_s"),
-             r.get("numpy_evals_per_s"), r.get("speedup")] for r in out.get("throughput", [])]
-    if rows:
-        parts.append(_table(["kernel", "dtype", "P", "N", "candidates/s", "NumPy loop candidates/s", "speed-up"],
-                            rows))
-    rows = [[m.get("method"), m.get("seconds"), m.get("numpy_seconds"), m.get("speedup")]
-            for m in out.get("time_to_model", [])]
-    if rows:
-        parts.append(_table(["method", "s to a model", "NumPy loop s", "speed-up"], rows))
-    return "\n\n".join(parts) or "(no tables in this record)"
-
-
-RENDERERS = {"identify": render_identify, "verify": render_verify, "bench": render_bench}
+RENDERERS = {"identify": render_identify, "verify": render_verify}
+"""How each kind of record is drawn; a new kind (e.g. ``bench.json``) needs its renderer here."""
 
 INTRO = """# Benchmarks
 

@@ -100,7 +100,7 @@ def test_api_reference_covers_every_export(site):
 def test_tutorial_is_the_notebook(site):
     html = (site / "tutorial" / "index.html").read_text()
     assert "From a flight log to a validated hover model" in html
-    assert "ITERATIONS" in html and "language-python" in html  # its code cells, shown as code
+    assert "ITERATIONS" in html and "highlight" in html  # its code cells, shown as code
 
 
 def test_command_help_is_rendered(site):
