@@ -1,0 +1,288 @@
+"""The Benchmarks page, generated from the measurement records in ``docs/benchmarks/*.json``.
+
+A record is one command's JSON output with what it takes to read it: the command, the commit it ran on, the
+machine, the date and a label (measured or estimated; in-sample or held-out; design or test seeds). No figure on
+the page is typed by hand: every number comes from a record.
+
+Write a record by running the command through this script (it times the run and reads back the JSON file the
+command wrote)::
+
+    python docs/gen_benchmarks.py record main-job --kind identify --json /tmp/rd/result.json \\
+        --title "..." --measure measured --sample in-sample \\
+        "jaxheli identify --data default --iterations 100 --out /tmp/rd"
+
+``python docs/gen_benchmarks.py render`` prints the page; ``mkdocs build`` renders it through ``docs/hooks.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import math
+import os
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+DOCS = Path(__file__).resolve().parent
+RECORDS = DOCS / "benchmarks"
+ROOT = DOCS.parent
+
+MEASURES = ("measured", "estimated")
+SAMPLES = ("in-sample", "held-out", "unknown", "not applicable")
+SEEDS = ("design", "calibration", "test", "not applicable")
+
+
+# --- writing a record ------------------------------------------------------------------------------------------
+
+
+def _git(*args: str) -> str:
+    return subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, text=True, check=True).stdout.strip()
+
+
+def machine() -> dict:
+    """The machine a record was measured on: OS, architecture, CPU model and count, load, Python and JAX."""
+    processor = platform.processor()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                processor = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    info = {
+        "system": f"{platform.system()} {platform.release()}",
+        "arch": platform.machine(),
+        "processor": processor,
+        "cpus": os.cpu_count(),
+        "load_1min": round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else None,
+        "python": platform.python_version(),
+    }
+    try:
+        import jax
+
+        info["jax"] = jax.__version__
+        info["device"] = str(jax.devices()[0].device_kind)
+    except Exception:  # noqa: BLE001 - a record without JAX still says the rest
+        pass
+    return info
+
+
+def record(name: str, kind: str, command: str, json_path: Path, *, title: str, measure: str, sample: str,
+           seeds: str, note: str = "", ran_s: float | None = None) -> dict:
+    """Run ``command`` (a shell command line, from the repository root), read the JSON it writes at ``json_path``
+    and store it with its metadata as ``docs/benchmarks/NAME.json``; the record keeps the command as written
+    (``$JAXHELI_DATA`` unexpanded). ``ran_s``: the command already ran on this commit, taking that long by the
+    caller's clock; its output is stored without running it again (the record says so)."""
+    load_before = machine()["load_1min"]
+    if ran_s is None:
+        start = time.perf_counter()
+        subprocess.run(["bash", "-c", command], cwd=ROOT, check=True)
+        wall = time.perf_counter() - start
+    else:
+        wall, load_before = ran_s, None
+        note = (note + " " if note else "") + "Run before the record was written, with the code of this commit (only docs differed); its output stored."
+    status = _git("status", "--porcelain", "--untracked-files=no", "--", "jaxheli", "pyproject.toml")
+    rec = {
+        "title": title,
+        "kind": kind,
+        "command": command,
+        "commit": _git("rev-parse", "HEAD"),
+        "code_dirty": bool(status),
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "machine": {**machine(), "load_1min_before": load_before},
+        "label": {"measure": measure, "sample": sample, "seeds": seeds, "note": note},
+        "wall_s": round(wall, 1),
+        "output": json.loads(Path(json_path).read_text()),
+    }
+    RECORDS.mkdir(exist_ok=True)
+    (RECORDS / f"{name}.json").write_text(json.dumps(_finite(rec), indent=1) + "\n")
+    return rec
+
+
+def _finite(value):
+    """``value`` with non-finite floats as strings (strict JSON)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite(v) for v in value]
+    return value
+
+
+# --- rendering -------------------------------------------------------------------------------------------------
+
+
+def load_records(folder: Path = RECORDS) -> list[tuple[str, dict]]:
+    """``(name, record)`` for every ``*.json`` in ``folder``, by name."""
+    return [(path.stem, json.loads(path.read_text())) for path in sorted(folder.glob("*.json"))]
+
+
+def _num(value, digits: int = 3) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, str):
+        return value
+    if isinstance(value, bool):
+        return str(value)
+    if isinstance(value, int):
+        return f"{value:,}"
+    if not math.isfinite(value):
+        return str(value)
+    if float(value).is_integer() and abs(value) < 1e6:
+        return f"{int(value):,}"
+    if abs(value) >= 1000:
+        return f"{value:,.0f}"
+    return f"{value:.{digits}g}" if abs(value) < 1 else f"{value:.{max(digits - len(str(int(abs(value)))), 1)}f}"
+
+
+def _table(header: list[str], rows: list[list]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(_num(c) if not isinstance(c, str) else c for c in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def _metadata(rec: dict) -> str:
+    m = rec["machine"]
+    label = rec["label"]
+    device = f", {m['device']}" if m.get("device") else ""
+    jax = f", JAX {m['jax']}" if m.get("jax") else ""
+    dirty = " (with uncommitted changes to the code)" if rec.get("code_dirty") else ""
+    rows = [
+        ("command", f"`{rec['command']}`"),
+        ("commit", f"`{rec['commit']}`{dirty}"),
+        ("machine", f"{m['processor']}, {m['cpus']} CPUs{device}, {m['system']}, Python {m['python']}{jax}; load "
+                    + (f"average {m['load_1min_before']} before the run, " if m.get("load_1min_before") is not None
+                       else "average ")
+                    + f"{m.get('load_1min', '-')} when recorded"),
+        ("date", rec["date"]),
+        ("label", f"**{label['measure']}**; sample: {label['sample']}; seeds: {label['seeds']}"),
+        ("wall time of the command", f"{_num(rec['wall_s'])} s (measured)"),
+    ]
+    if label.get("note"):
+        rows.append(("note", label["note"]))
+    return "\n".join(["| | |", "|---|---|"] + [f"| {k} | {v} |" for k, v in rows])
+
+
+def _metric_rows(block: dict, metrics: tuple[str, ...]) -> list[list]:
+    channels = block["channels"] if "channels" in block else list(block[metrics[0]])
+    return [[f"`{ch}`"] + [block[m][ch] if isinstance(block[m], dict) else block[m][i] for m in metrics]
+            for i, ch in enumerate(channels)]
+
+
+def render_identify(rec: dict) -> str:
+    out = rec["output"]
+    parts = []
+    for split in ("train", "validate"):
+        block = out.get(split)
+        if not block:
+            continue
+        truth = (out.get("truth") or {}).get(split) or {}
+        names = {"pearson": "Pearson", "tic": "TIC", "fit_percent": "fit %"}
+        header = ["channel"] + [f"model {names[m]}" for m in names]
+        if truth:
+            header += [f"truth {names[m]}" for m in names] + ["model - truth fit %"]
+        rows = []
+        for ch in block["pearson"]:
+            row = [f"`{ch}`"] + [block[m][ch] for m in names]
+            if truth:
+                row += [truth[m][ch] for m in names] + [round(block["fit_percent"][ch] - truth["fit_percent"][ch], 2)]
+            rows.append(row)
+        sample = "in-sample: the flight the model was fitted to" if split == "train" else "held out"
+        parts.append(f"**{split}** ({sample}; fit % in percent, TIC 0 is a perfect match):\n\n" + _table(header, rows))
+    extra = []
+    cr = (out.get("truth") or {}).get("cramer_rao")
+    if cr:
+        within, identifiable = (len(v) if isinstance(v, list) else v for v in (cr["within"], cr["identifiable"]))
+        extra.append([f"identifiable parameters within {_num(cr.get('k', 3))} Cramer-Rao standard errors of the truth",
+                      f"{within} of {identifiable}"])
+    freq = out.get("frequency") or {}
+    if "j_average" in freq:
+        extra.append(["Tischler's J, average over the input-output pairs (<= 100 acceptable)", freq["j_average"]])
+    if out.get("seconds") is not None:
+        extra.append(["seconds to fit (the result's own clock)", out["seconds"]])
+    if extra:
+        parts.append(_table(["", "value"], extra))
+    return "\n\n".join(parts)
+
+
+def render_verify(rec: dict) -> str:
+    """One table per verified flight: the scores pooled over its runs, per channel and overall."""
+    parts = []
+    metrics = ("tic", "pearson", "fit_percent", "j_rms")
+    for v in rec["output"]["verifications"]:
+        pooled = v["pooled"]
+        rows = [[f"`{ch}`"] + [pooled[m].get(ch) for m in metrics] for ch in v["channels"]]
+        rows.append(["**overall**"] + [pooled[m].get("overall") for m in metrics])
+        n = len(v["runs"])
+        length = "the whole window" if v["run_length_s"] is None else f"{_num(v['run_length_s'])} s"
+        parts.append(f"`{Path(v['source']).name}`: {n} run{'s' if n != 1 else ''} of {length}, scores pooled over them:\n\n"
+                     + _table(["channel", "TIC", "Pearson", "fit %", "J_rms"], rows))
+    return "\n\n".join(parts)
+
+
+RENDERERS = {"identify": render_identify, "verify": render_verify}
+"""How each kind of record is drawn; a new kind (e.g. ``bench.json``) needs its renderer here."""
+
+INTRO = """# Benchmarks
+
+Every figure on this page is read from a record in `docs/benchmarks/*.json` (this page is generated by
+`docs/gen_benchmarks.py` when the site is built; no number here is typed by hand). Each record keeps the command
+that produced it, the commit it ran on, the machine, and its label: **measured** or **estimated**, **in-sample**
+(scored on the flight the model was fitted to) or **held-out**, and which seeds (design, calibration or test seeds of
+the blind check's protocol, `jaxheli/gap/thresholds.json`). A record is re-measured by running its command again:
+
+```bash
+python docs/gen_benchmarks.py record NAME --kind KIND --json OUTPUT.json --title TITLE \\
+    --measure measured --sample in-sample --seeds "not applicable" "COMMAND"
+```
+
+The earlier figures, with their commits, commands and conditions, are the lab notebook:
+[performance history](performance_history.md) (timings of the main job, `jaxheli bench`, the diagnosis, the test
+suite) and [blind-check history](blind_history.md) (every held-out test of the gap diagnosis and the design-seed
+studies behind its rules).
+"""
+
+
+def render(records: list[tuple[str, dict]]) -> str:
+    parts = [INTRO]
+    for name, rec in records:
+        renderer = RENDERERS.get(rec.get("kind"))
+        body = renderer(rec) if renderer else "(no renderer for this kind of record)"
+        parts.append(f"## {rec['title']}\n\nRecord `docs/benchmarks/{name}.json`.\n\n{_metadata(rec)}\n\n{body}\n")
+    if not records:
+        parts.append("No records yet.\n")
+    return "\n".join(parts)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="action", required=True)
+    rec = sub.add_parser("record", help="run a command and store its JSON output with the metadata")
+    rec.add_argument("name", help="the record's file name in docs/benchmarks/ (without .json)")
+    rec.add_argument("--kind", required=True, choices=sorted(RENDERERS))
+    rec.add_argument("--json", required=True, type=Path, help="the JSON file the command writes")
+    rec.add_argument("--title", required=True)
+    rec.add_argument("--measure", choices=MEASURES, default="measured")
+    rec.add_argument("--sample", choices=SAMPLES, required=True)
+    rec.add_argument("--seeds", choices=SEEDS, default="not applicable")
+    rec.add_argument("--note", default="")
+    rec.add_argument("--ran", type=float, default=None, metavar="SECONDS",
+                     help="the command already ran (taking SECONDS): store its JSON without running it again")
+    rec.add_argument("command", help="the command line, one argument (run by bash from the repository root)")
+    sub.add_parser("render", help="print the page")
+    args = parser.parse_args(argv)
+    if args.action == "render":
+        print(render(load_records()))
+        return 0
+    record(args.name, args.kind, args.command, args.json, title=args.title, measure=args.measure, sample=args.sample,
+           seeds=args.seeds, note=args.note, ran_s=args.ran)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
