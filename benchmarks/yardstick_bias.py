@@ -24,11 +24,12 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 from jaxheli import reporting  # noqa: E402
-from jaxheli.benchmark.blind import BOXES, DEFAULT_OUTPUTS, RESTARTS, TRUTHS_SIM, scenario, trial_flights  # noqa: E402
+from jaxheli.benchmark.blind import BOXES, TRUTHS_SIM, scenario, trial_flights  # noqa: E402
 from jaxheli.bounds import Bounds  # noqa: E402
 from jaxheli.effects import registry as fx  # noqa: E402
 from jaxheli.effects.plant import no_effect  # noqa: E402
 from jaxheli.gap.fit_effect import MAX_STEPS, embed, score, with_reference  # noqa: E402
+from jaxheli.gap.predictor import RESTARTS  # noqa: E402
 from jaxheli.gap.ranking import predictor_pair  # noqa: E402
 from jaxheli.gap.reference import REFERENCE_STEPS, refit_alone, theta_box  # noqa: E402
 

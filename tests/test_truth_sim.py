@@ -225,7 +225,8 @@ def test_the_adapter_gives_library_flights_and_passes_seeds_through():
 
 
 def test_the_blind_check_flies_independent_trials_and_starts_its_oracle_at_the_shared_values():
-    from jaxheli.benchmark.blind import _oracle_row, scenario, trial_flights
+    from jaxheli.benchmark.blind import scenario, trial_flights
+    from jaxheli.benchmark.blind._trial import _oracle_row
 
     inj, train, validate, right, facts = trial_flights("independent", "drag", 3, scenario(3), duration=8.0, dt=0.05,
                                                        outputs=DEFAULT_OUTPUTS)
