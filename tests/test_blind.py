@@ -12,6 +12,7 @@ import pytest
 from jaxheli._affinity import cores
 from jaxheli.effects import plant as augmented
 from jaxheli.effects import registry as fx
+from jaxheli.benchmark import ledger
 from jaxheli.benchmark.blind import (
     BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, base_model, blind_flights, explainable, markdown, resolvable,
     run_blind, sample_injection, scenario, summarise, summarise_bases, summarise_records, wilson_interval,
@@ -23,6 +24,13 @@ from jaxheli.model import R50_SI, TABLE2
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS
 
 LAY = augmented.layout(DEFAULT_OUTPUTS)
+
+
+@pytest.fixture(autouse=True)
+def _seed_ledger(tmp_path, monkeypatch):
+    """Each test's seed ledger is a file of its own: the suite never writes the committed ledger, nor is refused by
+    it."""
+    monkeypatch.setenv(ledger.ENV, str(tmp_path / "seed_ledger.jsonl"))
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -152,7 +160,7 @@ def test_other_base_methods_are_summarised_beside_pem_on_the_same_trials():
 
 def test_trials_run_on_the_protocols_seeds_and_record_the_thresholds(tmp_path, monkeypatch):
     """Test seeds come from the thresholds file's protocol (controls twice as many by default); the settings record
-    the split, the seeds and every threshold in force."""
+    the split, the seeds and every threshold in force (an empty ledger: none spent yet)."""
     from jaxheli.benchmark import blind
     from jaxheli.gap.thresholds import THRESHOLDS
 
