@@ -41,10 +41,11 @@ import numpy as np  # noqa: E402
 
 from jaxheli._progress import reporting  # noqa: E402
 from jaxheli._progress import stage  # noqa: E402
-from jaxheli.benchmark.blind import BOXES, DEFAULT_OUTPUTS, noise_free_pair  # noqa: E402
+from jaxheli.benchmark.blind import BOXES, noise_free_pair  # noqa: E402
 from jaxheli.data.flight import FlightData  # noqa: E402
 from jaxheli.optim.pem import fit, fitted_problem, pem  # noqa: E402
 from jaxheli.problem import parts  # noqa: E402
+from jaxheli.synth.piloted import DEFAULT_OUTPUTS  # noqa: E402
 
 SEGMENT_S = 6.0
 """Run length, s, of the in-sample output-error fit (the diagnosis's restart interval)."""

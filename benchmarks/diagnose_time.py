@@ -21,11 +21,12 @@ jax.config.update("jax_enable_x64", True)
 from jaxheli import configure_xla  # noqa: E402
 from jaxheli._compile_cache import use_compile_cache  # noqa: E402
 from jaxheli._progress import reporting  # noqa: E402
-from jaxheli.benchmark.blind import DEFAULT_OUTPUTS, base_model, scenario  # noqa: E402
+from jaxheli.benchmark.blind import base_model, scenario  # noqa: E402
 from jaxheli.benchmark.independent import independent_trial  # noqa: E402
 from jaxheli.gap.diagnose import diagnose  # noqa: E402
 from jaxheli.gap.fit_effect import MAX_STEPS  # noqa: E402
 from jaxheli.gap.prepare import SAMPLE_S  # noqa: E402
+from jaxheli.synth.piloted import DEFAULT_OUTPUTS  # noqa: E402
 
 
 def main() -> None:

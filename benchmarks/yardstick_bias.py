@@ -25,13 +25,15 @@ import numpy as np  # noqa: E402
 
 from jaxheli import configure_xla  # noqa: E402
 from jaxheli._progress import reporting  # noqa: E402
-from jaxheli.benchmark.blind import BOXES, DEFAULT_OUTPUTS, RESTARTS, TRUTHS_SIM, scenario, trial_flights  # noqa: E402
+from jaxheli.benchmark.blind import BOXES, TRUTHS_SIM, scenario, trial_flights  # noqa: E402
 from jaxheli.bounds import Bounds  # noqa: E402
 from jaxheli.effects import registry as fx  # noqa: E402
 from jaxheli.effects.plant import no_effect  # noqa: E402
 from jaxheli.gap.fit_effect import MAX_STEPS, embed, score, with_reference  # noqa: E402
+from jaxheli.gap.predictor import RESTARTS  # noqa: E402
 from jaxheli.gap.ranking import predictor_pair  # noqa: E402
 from jaxheli.gap.reference import REFERENCE_STEPS, refit_alone, theta_box  # noqa: E402
+from jaxheli.synth.piloted import DEFAULT_OUTPUTS  # noqa: E402
 
 
 def probe(truth_sim: str, seed: int, segment: float, restart: str) -> dict[str, float]:

@@ -12,17 +12,25 @@ import pytest
 from jaxheli._affinity import cores
 from jaxheli.effects import plant as augmented
 from jaxheli.effects import registry as fx
+from jaxheli.benchmark import ledger
 from jaxheli.benchmark.blind import (
-    BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, _process_on, _worker_cores, base_model, blind_flights, explainable,
-    markdown, resolvable, run_blind, sample_injection, scenario, summarise, summarise_bases, summarise_records,
-    wilson_interval,
+    BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, base_model, blind_flights, explainable, markdown, resolvable,
+    run_blind, sample_injection, scenario, summarise, summarise_bases, summarise_records, wilson_interval,
 )
+from jaxheli.benchmark.blind._pool import _process_on, _worker_cores
 from jaxheli.cli import main
 from jaxheli.gap.significance import MIN_SHRINK
 from jaxheli.model import R50_SI, TABLE2
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS
 
 LAY = augmented.layout(DEFAULT_OUTPUTS)
+
+
+@pytest.fixture(autouse=True)
+def _seed_ledger(tmp_path, monkeypatch):
+    """Each test's seed ledger is a file of its own: the suite never writes the committed ledger, nor is refused by
+    it."""
+    monkeypatch.setenv(ledger.ENV, str(tmp_path / "seed_ledger.jsonl"))
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -152,7 +160,7 @@ def test_other_base_methods_are_summarised_beside_pem_on_the_same_trials():
 
 def test_trials_run_on_the_protocols_seeds_and_record_the_thresholds(tmp_path, monkeypatch):
     """Test seeds come from the thresholds file's protocol (controls twice as many by default); the settings record
-    the split, the seeds and every threshold in force."""
+    the split, the seeds and every threshold in force (an empty ledger: none spent yet)."""
     from jaxheli.benchmark import blind
     from jaxheli.gap.thresholds import THRESHOLDS
 
@@ -163,7 +171,7 @@ def test_trials_run_on_the_protocols_seeds_and_record_the_thresholds(tmp_path, m
         return [{"kind": t.kind, "seed": t.seed, "top": "none", "correct": t.kind == "none", "detectable": True,
                  "base": {"method": t.base}} for t in trials]
 
-    monkeypatch.setattr(blind, "run_blind", fake)
+    monkeypatch.setattr(blind._run, "run_blind", fake)
     summary = blind.run_benchmark(["input_delay", "none"], 2, tmp_path, split="test", iwo_seeds=1, restart="segment",
                                   segment=6.0)
     first = THRESHOLDS.protocol.test_from
@@ -196,7 +204,7 @@ def test_no_fit_starts_at_an_injected_value():
 def test_a_trial_without_a_constant_channel_keeps_every_other_effect_value():
     """A channel constant on a trial's flight (quantised coarser than it moves) is left out as a user would; the
     injection keeps each parameter that still exists, and loses its primary when that was the channel's own."""
-    from jaxheli.benchmark.blind import _restrict
+    from jaxheli.benchmark.blind._injection import _restrict
 
     inj = sample_injection("output_bias_drift", 3)
     names = {p.name: p.slot for p in fx.params(inj.kind, DEFAULT_OUTPUTS)}
@@ -228,7 +236,8 @@ def test_the_noise_free_pairs_are_the_flights_whose_detectability_the_trial_reco
     """Either flight's noise-free pair (with the effect, re-flown without it) is the pair the blind trial scored:
     its ratio is the trial's detectability (validation) and training detectability, and the two flights differ."""
     from jaxheli.benchmark import truth as independent_truth
-    from jaxheli.benchmark.blind import noise_free_pair, _library_detectability, _library_seeds
+    from jaxheli.benchmark.blind import noise_free_pair
+    from jaxheli.benchmark.blind._flights import _library_detectability, _library_seeds
 
     kind, seed, duration = "logger_delay" if truth == "independent" else "input_delay", 7, 12.0
     pairs = [noise_free_pair(truth, kind, seed, train=train, duration=duration) for train in (False, True)]
@@ -281,7 +290,7 @@ def _exited(pid: int) -> bool:
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_a_trial_worker_outlives_no_run_that_spawned_it():
     """A worker watching its run (``_exit_with``) stays while the run lives and ends once it is gone."""
-    worker = "import sys; from jaxheli.benchmark.blind import _exit_with; _exit_with(int(sys.argv[1]), 0.1)"
+    worker = "import sys; from jaxheli.benchmark.blind._pool import _exit_with; _exit_with(int(sys.argv[1]), 0.1)"
     run = ("import os, subprocess, sys, time; "
            f"w = subprocess.Popen([sys.executable, '-c', {worker!r}, str(os.getpid())]); "
            "time.sleep(8); print(w.pid, w.poll() is None)")

@@ -23,15 +23,20 @@ def test_every_value_comes_with_the_commit_and_seeds_that_set_it():
 
 
 def test_protocol_seeds_and_their_ranges():
+    """The ranges alone, no seed spent (the ledger's refusals: tests/test_ledger.py)."""
     p = th.THRESHOLDS.protocol
-    assert p.seeds("test", 3) == [p.test_from, p.test_from + 1, p.test_from + 2]
-    assert p.seeds("calibration", 2) == [p.calibration[0], p.calibration[0] + 1]
+
+    def seeds(*args, **kwargs):
+        return p.seeds(*args, spent=set(), **kwargs)
+
+    assert seeds("test", 3) == [p.test_from, p.test_from + 1, p.test_from + 2]
+    assert seeds("calibration", 2) == [p.calibration[0], p.calibration[0] + 1]
     with pytest.raises(ValueError, match="design seeds end at 99: 101 from 0 do not fit"):
-        p.seeds("design", 101)
-    assert p.seeds("calibration", 2, skip=40) == [p.calibration[0] + 40, p.calibration[0] + 41]
-    assert p.seeds("test", 1, skip=1000) == [p.test_from + 1000]
+        seeds("design", 101)
+    assert seeds("calibration", 2, skip=40) == [p.calibration[0] + 40, p.calibration[0] + 41]
+    assert seeds("test", 1, skip=1000) == [p.test_from + 1000]
     with pytest.raises(ValueError, match="calibration seeds end at"):
-        p.seeds("calibration", 61, skip=40)
+        seeds("calibration", 61, skip=40)
 
 
 def test_another_file_is_read_and_a_missing_field_is_named(tmp_path, monkeypatch):

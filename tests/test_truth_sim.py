@@ -181,7 +181,7 @@ def test_detectability_is_false_without_an_effect_and_true_for_a_large_one():
     for effects, expected in ((ts.Effects(drag=ts.Drag(0.0, 0.0)), False),
                               (ts.Effects(servo=ts.Servo(delay=(3, 3, 3, 3))), True)):
         flight = ts.fly(TABLE2, effects, **common)
-        score = ts.detectability(TABLE2, effects, flight, sigma, seed=7, duration=10.0, dt=0.05)
+        score = ts.detectability(TABLE2, flight, sigma, seed=7, duration=10.0, dt=0.05)
         assert (score > 1.0) is expected, score
     none = ts.truth_trial("none", 3, TABLE2, style="regulation", duration=10.0)
     assert none.score == 0.0 and not none.detectable
@@ -225,7 +225,8 @@ def test_the_adapter_gives_library_flights_and_passes_seeds_through():
 
 
 def test_the_blind_check_flies_independent_trials_and_starts_its_oracle_at_the_shared_values():
-    from jaxheli.benchmark.blind import _oracle_row, scenario, trial_flights
+    from jaxheli.benchmark.blind import scenario, trial_flights
+    from jaxheli.benchmark.blind._trial import _oracle_row
 
     inj, train, validate, right, facts = trial_flights("independent", "drag", 3, scenario(3), duration=8.0, dt=0.05,
                                                        outputs=DEFAULT_OUTPUTS)

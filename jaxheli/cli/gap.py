@@ -115,15 +115,21 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                    help="run nothing: summarise the records of an earlier run's blind.json again (today's table, "
                         "e.g. after a column was added) and write --out/blind.md")
     p.add_argument("--split", choices=("design", "calibration", "test"), default="design",
-                   help="seed range of the protocol in jaxheli/gap/thresholds.json: design (anything goes), "
-                        "calibration (sets the thresholds), test (run once per release, never changes a rule; "
-                        "default design)")
+                   help="seed range of the protocol in jaxheli/gap/thresholds.json: design (where rules are tried), "
+                        "calibration (sets the thresholds), test (looked at once per rule change and simulator, never "
+                        "changes a rule: a second test look under the same rules is refused; default design)")
     p.add_argument("--seeds", type=int, default=2, help="trials per effect kind, the split's first seeds (default 2)")
     p.add_argument("--control-seeds", type=int, default=None,
                    help="trials of the effect-free control (kind none; default twice --seeds)")
     p.add_argument("--skip-seeds", type=int, default=0,
-                   help="start this many seeds into the split, past those an earlier run spent (e.g. --split test "
-                        "--skip-seeds 1000: test seeds from 2000; default 0)")
+                   help="start this many seeds into the split (e.g. --split test --skip-seeds 1000: test seeds from "
+                        "2000; default 0). A seed once flown, in any split, is spent: every seed a run draws, "
+                        "controls included, is appended to the seed ledger (jaxheli/benchmark/seed_ledger.jsonl, "
+                        "or $JAXHELI_LEDGER) before it flies, and a spent seed is refused with the --skip-seeds of "
+                        "the first unspent ones")
+    p.add_argument("--refly-design", action="store_true",
+                   help="fly spent design seeds again (to compare a rule before and after on the same flights; "
+                        "still recorded); calibration and test seeds are never flown twice")
     p.add_argument("--box", choices=tuple(BOXES), default="hull",
                    help="box the base model is identified and diagnosed in: the hull of both truth classes, or "
                         "the command line's default (the authors' TREX box, which the R-50 truths leave; default "
@@ -222,9 +228,9 @@ def _cmd_blind(args: argparse.Namespace) -> int:
     kinds = args.kinds or list(TRUTHS_SIM[args.truth])
     summary = run_benchmark(kinds, args.seeds, args.out, workers=args.workers, iwo_seeds=args.iwo_seeds,
                             truth=args.truth, split=args.split, control_seeds=args.control_seeds,
-                            skip_seeds=args.skip_seeds, duration=args.duration, dt=args.dt, max_steps=args.max_steps,
-                            pem_steps=args.pem_steps, iterations=args.iterations, box=args.box,
-                            segment=args.segment, restart=args.restart)
+                            skip_seeds=args.skip_seeds, refly_design=args.refly_design, duration=args.duration,
+                            dt=args.dt, max_steps=args.max_steps, pem_steps=args.pem_steps,
+                            iterations=args.iterations, box=args.box, segment=args.segment, restart=args.restart)
     print(markdown(summary))
     print(f"runtime {summary['runtime_s']:.0f} s; wrote {Path(args.out) / 'blind.json'} and blind.md")
     return 0

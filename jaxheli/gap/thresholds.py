@@ -1,9 +1,10 @@
 """The diagnosis's thresholds and the blind check's seed protocol, read from one file (``thresholds.json``
 beside this module, or ``$JAXHELI_THRESHOLDS``), the only place the diagnosis and the benchmark take them from.
 
-Each value records the commit that set it and the seeds it was set on. The protocol: design seeds (anything
-goes), calibration seeds (they set every value here), test seeds (run once per release, reported, never used to
-change a value). A value changed after a test run voids that run's numbers.
+Each value records the commit that set it and the seeds it was set on. The protocol: design seeds (where rules are
+tried), calibration seeds (they set every value here), test seeds (looked at once per rule change, reported, never used
+to change a value). A value changed after a test run voids that run's numbers. A seed once flown, in any split, is
+spent: :meth:`Protocol.seeds` refuses the seeds of the ledger (:mod:`jaxheli.benchmark.ledger`).
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ import dataclasses
 import json
 import os
 from pathlib import Path
+
+from ..benchmark import ledger
 
 FILE = Path(__file__).with_name("thresholds.json")
 """The thresholds file shipped with the package."""
@@ -29,17 +32,47 @@ class Protocol:
     calibration: tuple[int, int]
     test_from: int
 
-    def seeds(self, split: str, count: int, skip: int = 0) -> list[int]:
+    def seeds(self, split: str, count: int, skip: int = 0, *, refly: bool = False,
+              spent: set[int] | None = None) -> list[int]:
         """``count`` seeds of ``split`` (``"design"``, ``"calibration"`` or ``"test"``), from its first after
-        ``skip`` (past the seeds an earlier run spent)."""
-        first, last = {"design": self.design, "calibration": self.calibration,
-                       "test": (self.test_from, None)}[split]
+        ``skip``, none of them spent: a ``ValueError`` names the spent ones, the ledger and where the first run of
+        ``count`` unspent seeds of the split starts. ``spent`` defaults to the ledger's seeds
+        (:func:`jaxheli.benchmark.ledger.spent`); ``refly`` lets design seeds be flown again (while a rule is being
+        tried on them), never calibration or test seeds."""
+        first, last = self._range(split)
         if skip < 0:
             raise ValueError(f"{split} seeds: skip must be >= 0, got {skip}")
-        first += skip
-        if last is not None and first + count - 1 > last:
-            raise ValueError(f"{split} seeds end at {last}: {count} from {first} do not fit")
-        return list(range(first, first + count))
+        if refly and split != "design":
+            raise ValueError(f"{split} seeds are never flown again: only design seeds may be (refly)")
+        start = first + skip
+        if last is not None and start + count - 1 > last:
+            raise ValueError(f"{split} seeds end at {last}: {count} from {start} do not fit")
+        seeds = list(range(start, start + count))
+        used = set() if refly else (ledger.spent() if spent is None else spent)
+        again = [s for s in seeds if s in used]
+        if again:
+            raise ValueError(f"{split} seeds {ledger.spans_text(again)} are spent (ledger {ledger.path()}); "
+                             + self._next(split, count, used))
+        return seeds
+
+    def _range(self, split: str) -> tuple[int, int | None]:
+        ranges = {"design": self.design, "calibration": self.calibration, "test": (self.test_from, None)}
+        if split not in ranges:
+            raise ValueError(f"unknown split {split!r}; splits are {tuple(ranges)}")
+        return ranges[split]
+
+    def _next(self, split: str, count: int, used: set[int]) -> str:
+        """Where the first ``count`` consecutive unspent seeds of ``split`` start, as the ``--skip-seeds`` to pass."""
+        first, last = self._range(split)
+        start = first
+        while last is None or start + count - 1 <= last:
+            clash = [s for s in range(start, start + count) if s in used]
+            if not clash:
+                more = " (or fly design seeds again with --refly-design)" if split == "design" else ""
+                return f"the first {count} unspent start at {start}: pass --skip-seeds {start - first}{more}"
+            start = max(clash) + 1
+        more = "; design seeds may be flown again with --refly-design" if split == "design" else ""
+        return f"no {count} consecutive unspent {split} seeds are left in {first}-{last}{more}"
 
 
 @dataclasses.dataclass(frozen=True)

@@ -42,11 +42,11 @@ class TruthTrial:
         return self.detectable and self.train_score > 1.0
 
 
-def detectability(theta: np.ndarray, effects: Effects, flight: Record, noise: np.ndarray, *, seed: int,
-                  duration: float, dt: float, outputs: tuple[str, ...] = OUTPUTS, style: str = VALIDATE_STYLE
-                  ) -> float:
-    """``max_k rms_t(y_eff - y_clean) / sigma_k`` of ``flight`` flown with ``effects`` from ``seed`` with the
-    excitation ``style``: the same flight re-flown without them gives ``y_clean`` (``noise`` holds ``sigma_k``)."""
+def detectability(theta: np.ndarray, flight: Record, noise: np.ndarray, *, seed: int, duration: float, dt: float,
+                  outputs: tuple[str, ...] = OUTPUTS, style: str = VALIDATE_STYLE) -> float:
+    """``max_k rms_t(y_eff - y_clean) / sigma_k`` of ``flight``, flown by ``theta`` with its effects from ``seed``
+    with the excitation ``style``: the same flight re-flown without any effect gives ``y_clean`` (``noise`` holds
+    ``sigma_k``)."""
     clean = fly(theta, Effects(), style=style, duration=duration, dt=dt, seed=seed, noise=noise, outputs=outputs)
     return detectability_ratio(flight.clean, clean.clean, noise)
 
@@ -70,7 +70,7 @@ def truth_trial(kind: str, seed: int, theta: np.ndarray, *, style: str, noise: f
     common = dict(duration=duration, dt=dt, noise=sigma, outputs=tuple(outputs))
     train = fly(theta, injected.effects, style=style, seed=2 * seed, **common)
     validate = fly(theta, injected.effects, style=VALIDATE_STYLE, seed=2 * seed + 1, **common)
-    scores = [detectability(theta, injected.effects, record, sigma, seed=s, duration=duration, dt=dt,
-                            outputs=tuple(outputs), style=flown) for record, s, flown in
+    scores = [detectability(theta, record, sigma, seed=s, duration=duration, dt=dt, outputs=tuple(outputs),
+                            style=flown) for record, s, flown in
               ((validate, 2 * seed + 1, VALIDATE_STYLE), (train, 2 * seed, style))]
     return TruthTrial(injected, train, validate, sigma, scores[0], scores[0] > 1.0, scores[1])
