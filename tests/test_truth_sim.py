@@ -271,3 +271,19 @@ def test_the_blind_check_flies_independent_trials_and_starts_its_oracle_at_the_s
     assert start[0, 0] == pytest.approx(np.clip(inj.value, lower[0, 0], upper[0, 0]))
     with pytest.raises(ValueError, match="unknown truth simulator"):
         trial_flights("other", "drag", 3, scenario(3), duration=8.0, dt=0.05, outputs=DEFAULT_OUTPUTS)
+
+
+def test_wide_truths_leave_the_authors_box_in_every_coupling_and_the_pilot_still_flies_them():
+    rng = np.random.default_rng(11)
+    for reference in (TABLE2, R50_SI):
+        for _ in range(20):
+            theta = ts.wide_truth(reference, rng)
+            assert set(ts.COUPLINGS) <= set(ts.outside_box(theta))
+            A, B = ts.hover_model(theta)
+            K = ts.lqr_gain(A, B, 0.05)
+            Ad, Bd = (np.asarray(m) for m in scipy.signal.cont2discrete((A, B, np.eye(13), 0), 0.05)[:2])
+            assert np.max(np.abs(np.linalg.eigvals(Ad - Bd @ K))) < 1.0
+    assert ts.outside_box(TABLE2) == ()
+    flight = ts.fly(ts.wide_truth(TABLE2, rng), ts.Effects(), style="sweep", duration=10.0, dt=0.05, seed=2,
+                    noise=np.array([ts.NOISE[c] for c in ts.OUTPUTS]))
+    assert np.all(np.isfinite(flight.measured)) and np.max(np.abs(flight.states[:, 4:6])) < 0.5

@@ -7,6 +7,7 @@ a kind and flies a training and a validation flight, and decides detectability b
 """
 
 from ._airframe import Drag as Drag, Governor as Governor
+from ._class import COUPLINGS as COUPLINGS, outside_box as outside_box, wide_truth as wide_truth
 from ._flight import NOISE as NOISE, OUTPUTS as OUTPUTS, Effects as Effects, Record as Record, fly as fly
 from ._hover import STATES as STATES, STICKS as STICKS, gust_matrix as gust_matrix, hover_model as hover_model
 from ._kinds import KIND_CANDIDATES as KIND_CANDIDATES, KINDS as KINDS, SINGLE as SINGLE, Dice as Dice
