@@ -175,15 +175,24 @@ def test_a_bias_drift_settles_and_wanders_as_a_gauss_markov_process():
     assert rho == pytest.approx(np.exp(-1.0), abs=0.03)  # a walk's correlation would not decay
 
 
-def test_governor_droop_settles_on_its_analytic_gain():
+def test_governor_droop_settles_on_its_analytic_gain_and_integral_action_restores_the_speed():
     governor = ts.Governor(droop=0.06, tau=0.5, yaw=50.0)
-    n, h = 0.0, 0.01
+    state, h = np.zeros(2), 0.01
     history = []
     for _ in range(3000):
-        n = governor.advance(n, 0.4, h)
-        history.append(n)
+        state = governor.advance(state, 0.4, h)
+        history.append(state[0])
     assert history[-1] == pytest.approx(-0.06 * 0.4, rel=1e-9)
     assert history[49] == pytest.approx(-0.024 * (1 - np.exp(-1.0)), rel=1e-9)  # one time constant
+    integral = ts.Governor(droop=0.06, tau=0.5, yaw=50.0, ki=9.0)
+    t = h * np.arange(1001)
+    out = np.array(scipy.signal.lsim(([-0.12, 0.0], [1.0, 2.0, 9.0]), np.full(1001, 0.4), t)[1])[1:]
+    state, path = np.zeros(2), []
+    for _ in range(1000):
+        state = integral.advance(state, 0.4, h)
+        path.append(state[0])
+    np.testing.assert_allclose(path, out, atol=1e-6)  # -(droop / tau) s / (s^2 + s / tau + ki)
+    assert abs(path[-1]) < 1e-4 and min(path) < -0.005 and integral.steady(0.4) == 0.0
     A, B = ts.hover_model(TABLE2)
     accel = governor.accel(-0.024, np.zeros(4), B)
     r, w = ts.STATES.index("r"), ts.STATES.index("w")

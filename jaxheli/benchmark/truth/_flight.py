@@ -72,7 +72,7 @@ def fly(theta: np.ndarray, effects: Effects, *, style: str, duration: float, dt:
     gusts = (effects.turbulence.sample(n * substeps, h, streams[1]) if effects.turbulence is not None
              else np.zeros((n * substeps, E.shape[1])))
     servo = ServoState(effects.servo, h, streams[4])
-    x, speed = np.zeros(len(A)), 0.0
+    x, speed = np.zeros(len(A)), np.zeros(2)
     states, sticks = np.empty((n, len(A))), np.empty((n, len(STICKS)))
     for k in range(n):
         states[k] = x
@@ -84,7 +84,7 @@ def fly(theta: np.ndarray, effects: Effects, *, style: str, duration: float, dt:
             if effects.drag is not None:
                 accel += effects.drag.accel(x, gust)
             if effects.governor is not None:
-                accel += effects.governor.accel(speed, position, B)
+                accel += effects.governor.accel(speed[0], position, B)
                 speed = effects.governor.advance(speed, position[_COL], h)
             x = Ad @ x + G @ accel
         if not np.all(np.isfinite(x)):

@@ -131,48 +131,51 @@ def _dryden(d: Dice) -> tuple[Effects, dict]:
 
 
 def _drag(d: Dice) -> tuple[Effects, dict]:
-    """``X_uu``, ``Y_vv`` of -1 to -3 1/m times strength (at least -9) against a steady wind of up to 1 m/s on u
-    and v; shared: both and the wind."""
+    """``X_uu``, ``Y_vv`` of -1 to -3 1/m times strength (at least -9) along the airspeed in a steady wind of 1.5-3
+    m/s from 20-70 deg off a body axis (so that the drag couples u and v, which per-axis drag cannot); shared: both
+    and the wind."""
     xuu, yvv = (max(-9.0, -d.rng.uniform(1.0, 3.0) * d.strength) for _ in range(2))
-    wind = d.rng.uniform(-1.0, 1.0, 2)
-    drag = Drag(xuu, yvv, (float(wind[0]), float(wind[1])))
+    speed = d.rng.uniform(1.5, 3.0)
+    heading = np.deg2rad(d.rng.uniform(20.0, 70.0) + 90.0 * d.rng.integers(4))
+    drag = Drag(xuu, yvv, (float(speed * np.cos(heading)), float(speed * np.sin(heading))))
     return Effects(drag=drag), {"quadratic_drag": {"Xuu": xuu, "Yvv": yvv, "wind_u": drag.wind[0],
                                                    "wind_v": drag.wind[1]}}
 
 
 def _imu_misalignment(d: Dice) -> tuple[Effects, dict]:
-    """A gyro triad at 2-5 deg of yaw times strength (at most 15 deg), tilted 2-5 deg in roll and pitch, with 3-8 %
-    scale errors on p and q and up to 3 % on r; a velocity sensor at 0.5-1.5 times that yaw, tilted 2-5 deg, with
-    2-6 % scale errors on u and v; shared: both yaws and the gyro scales."""
+    """A gyro triad at 2-5 deg of yaw times strength (at most 15 deg), tilted 4-8 deg in roll and pitch, with 3-8 %
+    scale errors on p and q and up to 3 % on r; a velocity sensor at 0.5-1.5 times that yaw, tilted 4-8 deg, with
+    4-8 % scale errors on u and v; shared: both yaws and the gyro scales."""
     yaw = d.sign() * np.deg2rad(min(15.0, d.rng.uniform(2.0, 5.0) * d.strength))
     scale = (d.sign() * d.rng.uniform(0.03, 0.08), d.sign() * d.rng.uniform(0.03, 0.08), d.rng.uniform(-0.03, 0.03))
 
     def tilt() -> tuple[float, float]:
-        return tuple(float(d.sign() * np.deg2rad(d.rng.uniform(2.0, 5.0))) for _ in range(2))
+        return tuple(float(d.sign() * np.deg2rad(d.rng.uniform(4.0, 8.0))) for _ in range(2))
 
     imu = Imu(yaw, tilt(), scale, yaw * d.rng.uniform(0.5, 1.5), tilt(),
-              tuple(float(d.sign() * d.rng.uniform(0.02, 0.06)) for _ in range(2)))
+              tuple(float(d.sign() * d.rng.uniform(0.04, 0.08)) for _ in range(2)))
     return Effects(imu=imu), {"sensor_misalignment": {"yaw_misalignment": yaw, "velocity_yaw": imu.velocity_yaw,
                                                       "scale_p": scale[0], "scale_q": scale[1]}}
 
 
 def _bias_drift(d: Dice) -> tuple[Effects, dict]:
     """On one rate or attitude channel, a switch-on bias of 2-4 noise std times strength, settling by 2-4 std more
-    over 8-25 s, and a Gauss-Markov wander of 1.5-3 std with a correlation time of 2-8 s, each flight its own
+    over 8-25 s, and a Gauss-Markov wander of 2.5-4 std with a correlation time of 1-4 s, each flight its own
     path; shared: the switch-on bias."""
     channel = str(d.rng.choice([c for c in ("p", "q", "r", "phi", "theta") if c in d.outputs]))
     sigma = d.noise[channel] * d.strength
     drift = BiasDrift(channel, d.sign() * d.rng.uniform(2.0, 4.0) * sigma, d.sign() * d.rng.uniform(2.0, 4.0) * sigma,
-                      d.rng.uniform(8.0, 25.0), d.rng.uniform(1.5, 3.0) * sigma, d.rng.uniform(2.0, 8.0))
+                      d.rng.uniform(8.0, 25.0), d.rng.uniform(2.5, 4.0) * sigma, d.rng.uniform(1.0, 4.0))
     return Effects(bias=drift), {"output_bias_drift": {f"bias_{channel}": drift.start}}
 
 
 def _rotor_droop(d: Dice) -> tuple[Effects, dict]:
-    """Droop of 3-8 % per stick of collective times strength (at most 30 %) under a 0.3-1 s governor, a yaw
-    authority of 40-80 rad/s^2 per unit speed change; shared: ``rotor_gain = -yaw droop`` (the steady yaw
-    acceleration per stick) and ``rotor_tau`` the governor's time constant."""
+    """Droop of 3-8 % per stick of collective times strength (at most 30 %) through a rotor of 0.3-1 s, restored
+    by a governor's integral action at 2-5 rad/s, a yaw authority of 40-80 rad/s^2 per unit speed change; shared:
+    ``rotor_gain = -yaw droop`` and ``rotor_tau`` the rotor's time constant (the onset of the droop, which the
+    candidate's first-order coupling holds where the governor restores the speed)."""
     governor = Governor(min(0.3, d.rng.uniform(0.03, 0.08) * d.strength), d.rng.uniform(0.3, 1.0),
-                        d.sign() * d.rng.uniform(40.0, 80.0))
+                        d.sign() * d.rng.uniform(40.0, 80.0), d.rng.uniform(2.0, 5.0) ** 2)
     return Effects(governor=governor), {"rotor_speed_coupling": {"rotor_gain": -governor.yaw * governor.droop,
                                                                  "rotor_tau": governor.tau}}
 
