@@ -51,13 +51,39 @@ def test_the_hover_model_equals_the_librarys(theta, g):
     np.testing.assert_allclose(B, B_lib, rtol=0, atol=1e-12)
 
 
-def test_a_link_delay_shifts_a_step_by_whole_frames():
-    servo = ts.ServoState(ts.Servo(delay=(0, 2, 0, 3)), h=0.01)
+def test_a_link_delay_shifts_a_step_by_its_latency_between_frames():
+    dt = 0.01
+    servo = ts.ServoState(ts.Servo(delay=(0.0, 2 * dt, 0.025, 3 * dt)), h=dt / 10)
     commands = np.zeros((12, 4))
     commands[5:] = 0.3
-    reaching = np.array([servo.frame(c) for c in commands])
-    for axis, n in enumerate((0, 2, 0, 3)):
-        np.testing.assert_array_equal(reaching[:, axis], np.roll(commands[:, axis], n) * (np.arange(12) >= n))
+    for k, c in enumerate(commands):
+        servo.frame(c, k * dt)
+    reaching = np.array([servo.reaching(t) for t in dt / 10 * np.arange(120)])
+    t = dt / 10 * np.arange(120)
+    for axis, delay in enumerate((0.0, 2 * dt, 0.025, 3 * dt)):
+        np.testing.assert_array_equal(reaching[:, axis], 0.3 * (t >= 5 * dt + delay - 1e-9))
+
+
+def test_a_jittery_lossy_link_holds_the_last_frame_and_never_reorders():
+    dt = 0.02
+    servo = ts.ServoState(ts.Servo(delay=(0.03,) * 4, jitter=0.5 * dt, drop=0.2), h=dt / 10,
+                          rng=np.random.default_rng(4))
+    for k in range(300):
+        servo.frame(np.full(4, float(k)), k * dt)
+    lag = np.array([k * dt - (servo.reaching(k * dt + 0.5 * dt)[0]) * dt for k in range(2, 300)])
+    assert np.all(np.diff([a[0] for a in servo.arrivals]) >= 0)
+    assert 0.8 * 300 * 0.8 < len(servo.arrivals) < 300  # about a fifth of the frames lost
+    assert lag.min() >= 0.03 - 0.5 * dt - 1e-9 and np.ptp(lag) > 2 * dt  # jitter and losses move the delay
+
+
+def test_backlash_passes_a_reversal_only_after_the_play_is_taken_up():
+    servo = ts.ServoState(ts.Servo(backlash=(0.02, 0.0, 0.0, 0.0)), h=0.01)
+    command = np.concatenate([np.linspace(0, 0.1, 11), np.linspace(0.1, 0.05, 6)])
+    out = np.array([servo.step(np.array([c, c, 0.0, 0.0])) for c in command])
+    np.testing.assert_allclose(out[1:11, 0], command[1:11] - 0.01)  # dragged 0.01 behind going up
+    np.testing.assert_allclose(out[11, 0], 0.09)  # the first 0.01 back stays in the play
+    np.testing.assert_allclose(out[-1, 0], 0.06)  # then dragged 0.01 ahead going down
+    np.testing.assert_allclose(out[:, 1], command)
 
 
 def test_travel_stops_clip_and_a_rate_limit_ramps_at_its_slope():
@@ -129,26 +155,44 @@ def test_a_misaligned_gyro_triad_rotates_p_q_and_the_velocity_frame_rotates_u_v(
     np.testing.assert_allclose(scaled[:, 2:4], np.stack([1.05 * p, 0.97 * q], axis=1))
     tilted = ts.Imu(tilt=(0.0, 0.02)).gyro_matrix()
     assert tilted[0, 2] == pytest.approx(-np.sin(0.02))  # a pitched triad reads r on its p axis
+    mounted = ts.read(states, outputs, ts.Imu(velocity_tilt=(0.0, 0.05), velocity_scale=(0.04, -0.02)))
+    w = states[:, ts.STATES.index("w")]
+    np.testing.assert_allclose(mounted[:, 0], 1.04 * (np.cos(0.05) * u - np.sin(0.05) * w))  # w read on u
+    np.testing.assert_allclose(mounted[:, 1], 0.98 * v)
 
 
-def test_a_bias_random_walk_grows_its_variance_as_intensity_times_time():
-    walk = ts.BiasWalk("q", start=0.03, intensity=2e-4)
-    time = np.linspace(0.0, 20.0, 201)
+def test_a_bias_drift_settles_and_wanders_as_a_gauss_markov_process():
+    drift = ts.BiasDrift("q", start=0.03, settle=-0.02, settle_tau=10.0, sigma=0.01, tau=2.0)
+    time = np.arange(0.0, 20.0, 0.05)
     rng = np.random.default_rng(3)
-    paths = np.array([walk.sample(time, rng) for _ in range(2000)])
-    np.testing.assert_array_equal(paths[:, 0], 0.03)
-    np.testing.assert_allclose(paths[:, 1:].var(axis=0) / (2e-4 * time[1:]), 1.0, atol=0.15)
+    paths = np.array([drift.sample(time, rng) for _ in range(4000)])
+    mean = 0.03 - 0.02 * (1 - np.exp(-time / 10.0))
+    np.testing.assert_allclose(paths.mean(axis=0), mean, atol=4 * 0.01 / np.sqrt(4000))
+    np.testing.assert_allclose(paths.std(axis=0), 0.01, rtol=0.06)
+    wander = paths - mean
+    lag = 40  # 2 s, one correlation time
+    rho = np.mean(wander[:, :-lag] * wander[:, lag:]) / 0.01**2
+    assert rho == pytest.approx(np.exp(-1.0), abs=0.03)  # a walk's correlation would not decay
 
 
-def test_governor_droop_settles_on_its_analytic_gain():
+def test_governor_droop_settles_on_its_analytic_gain_and_integral_action_restores_the_speed():
     governor = ts.Governor(droop=0.06, tau=0.5, yaw=50.0)
-    n, h = 0.0, 0.01
+    state, h = np.zeros(2), 0.01
     history = []
     for _ in range(3000):
-        n = governor.advance(n, 0.4, h)
-        history.append(n)
+        state = governor.advance(state, 0.4, h)
+        history.append(state[0])
     assert history[-1] == pytest.approx(-0.06 * 0.4, rel=1e-9)
     assert history[49] == pytest.approx(-0.024 * (1 - np.exp(-1.0)), rel=1e-9)  # one time constant
+    integral = ts.Governor(droop=0.06, tau=0.5, yaw=50.0, ki=9.0)
+    t = h * np.arange(1001)
+    out = np.array(scipy.signal.lsim(([-0.12, 0.0], [1.0, 2.0, 9.0]), np.full(1001, 0.4), t)[1])[1:]
+    state, path = np.zeros(2), []
+    for _ in range(1000):
+        state = integral.advance(state, 0.4, h)
+        path.append(state[0])
+    np.testing.assert_allclose(path, out, atol=1e-6)  # -(droop / tau) s / (s^2 + s / tau + ki)
+    assert abs(path[-1]) < 1e-4 and min(path) < -0.005 and integral.steady(0.4) == 0.0
     A, B = ts.hover_model(TABLE2)
     accel = governor.accel(-0.024, np.zeros(4), B)
     r, w = ts.STATES.index("r"), ts.STATES.index("w")
@@ -179,7 +223,7 @@ def test_detectability_is_false_without_an_effect_and_true_for_a_large_one():
     sigma = np.array([ts.NOISE[c] for c in ts.OUTPUTS])
     common = dict(style="validate", duration=10.0, dt=0.05, seed=7, noise=sigma)
     for effects, expected in ((ts.Effects(drag=ts.Drag(0.0, 0.0)), False),
-                              (ts.Effects(servo=ts.Servo(delay=(3, 3, 3, 3))), True)):
+                              (ts.Effects(servo=ts.Servo(delay=(0.15,) * 4)), True)):
         flight = ts.fly(TABLE2, effects, **common)
         score = ts.detectability(TABLE2, flight, sigma, seed=7, duration=10.0, dt=0.05)
         assert (score > 1.0) is expected, score
@@ -237,3 +281,19 @@ def test_the_blind_check_flies_independent_trials_and_starts_its_oracle_at_the_s
     assert start[0, 0] == pytest.approx(np.clip(inj.value, lower[0, 0], upper[0, 0]))
     with pytest.raises(ValueError, match="unknown truth simulator"):
         trial_flights("other", "drag", 3, scenario(3), duration=8.0, dt=0.05, outputs=DEFAULT_OUTPUTS)
+
+
+def test_wide_truths_leave_the_authors_box_in_every_coupling_and_the_pilot_still_flies_them():
+    rng = np.random.default_rng(11)
+    for reference in (TABLE2, R50_SI):
+        for _ in range(20):
+            theta = ts.wide_truth(reference, rng)
+            assert set(ts.COUPLINGS) <= set(ts.outside_box(theta))
+            A, B = ts.hover_model(theta)
+            K = ts.lqr_gain(A, B, 0.05)
+            Ad, Bd = (np.asarray(m) for m in scipy.signal.cont2discrete((A, B, np.eye(13), 0), 0.05)[:2])
+            assert np.max(np.abs(np.linalg.eigvals(Ad - Bd @ K))) < 1.0
+    assert ts.outside_box(TABLE2) == ()
+    flight = ts.fly(ts.wide_truth(TABLE2, rng), ts.Effects(), style="sweep", duration=10.0, dt=0.05, seed=2,
+                    noise=np.array([ts.NOISE[c] for c in ts.OUTPUTS]))
+    assert np.all(np.isfinite(flight.measured)) and np.max(np.abs(flight.states[:, 4:6])) < 0.5

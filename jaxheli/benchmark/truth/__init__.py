@@ -7,12 +7,13 @@ a kind and flies a training and a validation flight, and decides detectability b
 """
 
 from ._airframe import Drag as Drag, Governor as Governor
+from ._class import COUPLINGS as COUPLINGS, outside_box as outside_box, wide_truth as wide_truth
 from ._flight import NOISE as NOISE, OUTPUTS as OUTPUTS, Effects as Effects, Record as Record, fly as fly
 from ._hover import STATES as STATES, STICKS as STICKS, gust_matrix as gust_matrix, hover_model as hover_model
 from ._kinds import KIND_CANDIDATES as KIND_CANDIDATES, KINDS as KINDS, SINGLE as SINGLE, Dice as Dice
 from ._kinds import Injected as Injected, draw as draw, join as join
 from ._pilot import excitation as excitation, lqr_gain as lqr_gain
-from ._sensors import BiasWalk as BiasWalk, Imu as Imu, Quantiser as Quantiser, Vibration as Vibration, read as read
+from ._sensors import BiasDrift as BiasDrift, Imu as Imu, Quantiser as Quantiser, Vibration as Vibration, read as read
 from ._servo import Servo as Servo, ServoState as ServoState
 from ._trial import TruthTrial as TruthTrial, detectability as detectability, truth_trial as truth_trial
 from ._trial import VALIDATE_STYLE as VALIDATE_STYLE, detectability_ratio as detectability_ratio

@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import scipy.linalg
 
 from ._hover import GRAVITY, STICKS, state_index
 
@@ -44,23 +45,27 @@ class Drag:
 
 @dataclasses.dataclass(frozen=True)
 class Governor:
-    """Rotor-speed droop: the fractional speed change ``n = dOmega / Omega`` follows a first-order governor of time
-    constant ``tau`` (s), ``n' = -(n + droop col) / tau`` (``droop`` fraction per stick of collective load). Thrust
-    scales as ``(1 + n)^2`` (``w' += -2 g n`` about hover, and the collective and pedal derivatives), and the tail
-    rotor's yaw authority with it against the engine torque the governor holds: ``r' += yaw n`` (rad/s^2)."""
+    """Rotor-speed droop under a governor with integral action: the fractional speed change ``n = dOmega / Omega``
+    follows ``n' = -(n + droop col) / tau - ki m``, ``m' = n`` (``droop`` fraction per stick of collective load,
+    ``tau`` the rotor's time constant in s, ``ki`` the governor's integral gain in 1/s^2), so a collective step
+    droops the speed for a moment and the governor restores it (no droop at all in a steady state when ``ki > 0``;
+    ``ki = 0`` is a proportional governor, a first-order droop). Thrust scales as ``(1 + n)^2`` (``w' += -2 g n``
+    about hover, and the collective and pedal derivatives), and the tail rotor's yaw authority with it against the
+    engine torque the governor holds: ``r' += yaw n`` (rad/s^2)."""
 
     droop: float
     tau: float
     yaw: float
+    ki: float = 0.0
 
     def steady(self, collective: float) -> float:
         """Steady droop ``n`` at a held ``collective`` (stick)."""
-        return -self.droop * collective
+        return 0.0 if self.ki > 0 else -self.droop * collective
 
-    def advance(self, n: float, collective: float, h: float) -> float:
-        """Exact step ``h`` (s) of the speed for ``collective`` held."""
-        decay = np.exp(-h / self.tau)
-        return decay * n + (1.0 - decay) * self.steady(collective)
+    def advance(self, state: np.ndarray, collective: float, h: float) -> np.ndarray:
+        """Exact step ``h`` (s) of the speed and its integral ``(n, m)`` for ``collective`` held."""
+        M = np.array([[-1.0 / self.tau, -self.ki, -self.droop / self.tau], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+        return (scipy.linalg.expm(M * h) @ np.append(state, collective))[:2]
 
     def accel(self, n: float, servo: np.ndarray, B: np.ndarray) -> np.ndarray:
         """Extra acceleration on the states at speed change ``n`` with servo positions ``servo`` (``B``, the

@@ -14,7 +14,7 @@ import numpy as np
 from ._airframe import Drag, Governor
 from ._hover import GRAVITY, STICKS, gust_matrix, hover_model, zoh
 from ._pilot import excitation, lqr_gain
-from ._sensors import BiasWalk, Imu, Quantiser, Vibration, read
+from ._sensors import BiasDrift, Imu, Quantiser, Vibration, read
 from ._servo import Servo, ServoState
 from ._turbulence import Dryden
 
@@ -36,7 +36,7 @@ class Effects:
     drag: Drag | None = None
     governor: Governor | None = None
     imu: Imu | None = None
-    bias: BiasWalk | None = None
+    bias: BiasDrift | None = None
     vibration: Vibration | None = None
     quantiser: Quantiser | None = None
 
@@ -58,8 +58,9 @@ def fly(theta: np.ndarray, effects: Effects, *, style: str, duration: float, dt:
     """Fly the 40 parameters ``theta`` for ``duration`` s with a logger of sample time ``dt`` (s) and ``substeps``
     internal steps per frame, the pilot's excitation ``style`` (:func:`~._pilot.excitation`), ``effects``, white
     sensor noise of std ``noise`` per output (channel units). ``seed`` fixes the excitation, the turbulence, the
-    bias walk and the noise, each from a stream of its own (so a flight without an effect meets the same sticks)."""
-    streams = [np.random.default_rng([seed, k]) for k in range(4)]
+    bias drift, the noise and the link's jitter and losses, each from a stream of its own (so a flight without an
+    effect meets the same sticks)."""
+    streams = [np.random.default_rng([seed, k]) for k in range(5)]
     A, B = hover_model(theta, g)
     E = gust_matrix(A)
     h = dt / substeps
@@ -70,20 +71,20 @@ def fly(theta: np.ndarray, effects: Effects, *, style: str, duration: float, dt:
     extra = excitation(style, time, streams[0])
     gusts = (effects.turbulence.sample(n * substeps, h, streams[1]) if effects.turbulence is not None
              else np.zeros((n * substeps, E.shape[1])))
-    servo = ServoState(effects.servo, h)
-    x, speed = np.zeros(len(A)), 0.0
+    servo = ServoState(effects.servo, h, streams[4])
+    x, speed = np.zeros(len(A)), np.zeros(2)
     states, sticks = np.empty((n, len(A))), np.empty((n, len(STICKS)))
     for k in range(n):
         states[k] = x
         sticks[k] = np.clip(extra[k] - K @ x, -1.0, 1.0)
-        reaching = servo.frame(sticks[k])
-        for gust in gusts[k * substeps:(k + 1) * substeps]:
-            position = servo.step(reaching)
+        servo.frame(sticks[k], time[k])
+        for j, gust in enumerate(gusts[k * substeps:(k + 1) * substeps]):
+            position = servo.step(servo.reaching(time[k] + j * h))
             accel = B @ position + E @ gust
             if effects.drag is not None:
                 accel += effects.drag.accel(x, gust)
             if effects.governor is not None:
-                accel += effects.governor.accel(speed, position, B)
+                accel += effects.governor.accel(speed[0], position, B)
                 speed = effects.governor.advance(speed, position[_COL], h)
             x = Ad @ x + G @ accel
         if not np.all(np.isfinite(x)):

@@ -14,7 +14,7 @@ import numpy as np
 
 from ._airframe import Drag, Governor
 from ._flight import Effects
-from ._sensors import BiasWalk, Imu, Quantiser, Vibration
+from ._sensors import BiasDrift, Imu, Quantiser, Vibration
 from ._servo import Servo
 from ._turbulence import Dryden
 
@@ -27,7 +27,7 @@ KIND_CANDIDATES: dict[str, tuple[str, ...]] = {
     "dryden": ("process_noise",),
     "drag": ("quadratic_drag",),
     "imu_misalignment": ("sensor_misalignment",),
-    "bias_walk": ("output_bias_drift",),
+    "bias_drift": ("output_bias_drift",),
     "rotor_droop": ("rotor_speed_coupling",),
     "quantisation": ("none",),
     "vibration": ("none",),
@@ -35,13 +35,15 @@ KIND_CANDIDATES: dict[str, tuple[str, ...]] = {
     "none": ("none",),
 }
 """Candidates that count as right per injected kind: a travel stop is a saturation (its rate limit acts as a lag
-on large steps); a link delay in whole frames an input delay; a second-order servo a lag or, at low frequency, a
-delay; Dryden turbulence process noise; drag against the wind quadratic drag; a rotated gyro triad and velocity frame a
-mounting misalignment; a wandering bias a bias with drift and walk; governor droop the rotor-speed coupling; quantisation and
-an aliased vibration line none (no candidate has their form). ``two_at_once``: either part's candidates."""
+on large steps); a link's latency, jitter and lost frames an input delay; a second-order, rate-limited servo with
+backlash a lag or, at low frequency, a delay; Dryden turbulence process noise; drag along the airspeed vector
+quadratic drag; tilted, mis-scaled gyro and velocity mounts a mounting misalignment; a bias that settles and wanders
+a bias with drift and walk; governor droop the rotor-speed coupling; quantisation and an aliased vibration line none
+(no candidate has their form). ``two_at_once``: either part's candidates. No kind is drawn in a candidate's own
+form: ``tests/test_truth_forms.py`` fits each kind's nearest candidate to its noise-free effect."""
 
 SINGLE: tuple[str, ...] = ("servo_limits", "logger_delay", "servo_dynamics", "dryden", "drag", "imu_misalignment",
-                           "bias_walk", "rotor_droop")
+                           "bias_drift", "rotor_droop")
 """Kinds with a candidate of their own, the parts ``two_at_once`` draws from."""
 
 KINDS: tuple[str, ...] = tuple(KIND_CANDIDATES)
@@ -93,19 +95,27 @@ def _servo_limits(d: Dice) -> tuple[Effects, dict]:
 
 
 def _logger_delay(d: Dice) -> tuple[Effects, dict]:
-    """A radio-link latency of whole logger frames on every axis: 40-100 ms times strength, at least one frame, at
-    most 0.2 s; shared: the delay."""
-    frames = int(np.clip(round(d.rng.uniform(0.04, 0.1) * d.strength / d.dt), 1, max(1, int(0.2 / d.dt))))
-    delay = frames * d.dt
-    return Effects(servo=Servo(delay=(frames,) * len(AXES))), {"input_delay": {f"delay_{a}": delay for a in AXES}}
+    """A radio link on every axis: latency 40-100 ms times strength (at most 0.2 s, not a whole number of frames),
+    jitter of std 0.2-0.5 frame, 2-8 % of frames lost; shared: the mean delay (latency, mean jitter, and half a
+    frame per lost frame's share)."""
+    latency = min(0.2, d.rng.uniform(0.04, 0.1) * d.strength)
+    jitter, drop = d.rng.uniform(0.2, 0.5) * d.dt, d.rng.uniform(0.02, 0.08)
+    delay = latency + jitter * np.sqrt(2.0 / np.pi) + 0.5 * drop * d.dt
+    servo = Servo(delay=(latency,) * len(AXES), jitter=jitter, drop=drop)
+    return Effects(servo=servo), {"input_delay": {f"delay_{a}": delay for a in AXES}}
 
 
 def _servo_dynamics(d: Dice) -> tuple[Effects, dict]:
-    """A second-order servo on one axis, ``wn`` 12-25 rad/s over strength (at least 6), ``zeta`` 0.5-0.9; shared: the
-    low-frequency equivalent lag and delay ``2 zeta / wn`` (first moment of the impulse response)."""
+    """A second-order servo on one axis, ``wn`` 12-25 rad/s over strength (at least 6), ``zeta`` 0.5-0.9, its rate
+    limited to 2-5 stick/s over strength (at least 1) and a backlash of 0.005-0.015 stick times strength (at most
+    0.04); shared: the low-frequency equivalent lag and delay ``2 zeta / wn`` (first moment of the impulse
+    response)."""
     axis = int(d.rng.integers(len(AXES)))
     wn, zeta = max(6.0, d.rng.uniform(12.0, 25.0) / d.strength), d.rng.uniform(0.5, 0.9)
-    servo = Servo(wn=_on_axis(axis, wn, np.inf), zeta=_on_axis(axis, zeta, 0.7))
+    rate = max(1.0, d.rng.uniform(2.0, 5.0) / d.strength)
+    backlash = min(0.04, d.rng.uniform(0.005, 0.015) * d.strength)
+    servo = Servo(wn=_on_axis(axis, wn, np.inf), zeta=_on_axis(axis, zeta, 0.7), rate=_on_axis(axis, rate, np.inf),
+                  backlash=_on_axis(axis, backlash, 0.0))
     tau = 2.0 * zeta / wn
     return Effects(servo=servo), {"actuator_lag": {f"lag_{AXES[axis]}": tau},
                                   "input_delay": {f"delay_{AXES[axis]}": tau}}
@@ -121,43 +131,51 @@ def _dryden(d: Dice) -> tuple[Effects, dict]:
 
 
 def _drag(d: Dice) -> tuple[Effects, dict]:
-    """``X_uu``, ``Y_vv`` of -1 to -3 1/m times strength (at least -9) against a steady wind of up to 1 m/s on u
-    and v; shared: both and the wind."""
+    """``X_uu``, ``Y_vv`` of -1 to -3 1/m times strength (at least -9) along the airspeed in a steady wind of 1.5-3
+    m/s from 20-70 deg off a body axis (so that the drag couples u and v, which per-axis drag cannot); shared: both
+    and the wind."""
     xuu, yvv = (max(-9.0, -d.rng.uniform(1.0, 3.0) * d.strength) for _ in range(2))
-    wind = d.rng.uniform(-1.0, 1.0, 2)
-    drag = Drag(xuu, yvv, (float(wind[0]), float(wind[1])))
+    speed = d.rng.uniform(1.5, 3.0)
+    heading = np.deg2rad(d.rng.uniform(20.0, 70.0) + 90.0 * d.rng.integers(4))
+    drag = Drag(xuu, yvv, (float(speed * np.cos(heading)), float(speed * np.sin(heading))))
     return Effects(drag=drag), {"quadratic_drag": {"Xuu": xuu, "Yvv": yvv, "wind_u": drag.wind[0],
                                                    "wind_v": drag.wind[1]}}
 
 
 def _imu_misalignment(d: Dice) -> tuple[Effects, dict]:
-    """A gyro triad at 2-5 deg of yaw times strength (at most 15 deg), tilted up to 1 deg, with 3-8 % scale errors
-    on p and q, and a velocity frame at 0.5-1.5 times that yaw; shared: both yaws and the scales."""
+    """A gyro triad at 2-5 deg of yaw times strength (at most 15 deg), tilted 4-8 deg in roll and pitch, with 3-8 %
+    scale errors on p and q and up to 3 % on r; a velocity sensor at 0.5-1.5 times that yaw, tilted 4-8 deg, with
+    4-8 % scale errors on u and v; shared: both yaws and the gyro scales."""
     yaw = d.sign() * np.deg2rad(min(15.0, d.rng.uniform(2.0, 5.0) * d.strength))
-    scale = (d.sign() * d.rng.uniform(0.03, 0.08), d.sign() * d.rng.uniform(0.03, 0.08), 0.0)
-    imu = Imu(yaw, tuple(np.deg2rad(d.rng.uniform(-1.0, 1.0, 2))), scale, yaw * d.rng.uniform(0.5, 1.5))
+    scale = (d.sign() * d.rng.uniform(0.03, 0.08), d.sign() * d.rng.uniform(0.03, 0.08), d.rng.uniform(-0.03, 0.03))
+
+    def tilt() -> tuple[float, float]:
+        return tuple(float(d.sign() * np.deg2rad(d.rng.uniform(4.0, 8.0))) for _ in range(2))
+
+    imu = Imu(yaw, tilt(), scale, yaw * d.rng.uniform(0.5, 1.5), tilt(),
+              tuple(float(d.sign() * d.rng.uniform(0.04, 0.08)) for _ in range(2)))
     return Effects(imu=imu), {"sensor_misalignment": {"yaw_misalignment": yaw, "velocity_yaw": imu.velocity_yaw,
                                                       "scale_p": scale[0], "scale_q": scale[1]}}
 
 
-def _bias_walk(d: Dice) -> tuple[Effects, dict]:
-    """A turn-on bias of 2-4 noise std times strength on one rate or attitude channel, wandering by as much again
-    (std) over the flight; shared: the turn-on bias and the walk's intensity (as the candidate's ``walk``, its square
-    root: unit per sqrt(s)), each flight walking its own path."""
+def _bias_drift(d: Dice) -> tuple[Effects, dict]:
+    """On one rate or attitude channel, a switch-on bias of 2-4 noise std times strength, settling by 2-4 std more
+    over 8-25 s, and a Gauss-Markov wander of 2.5-4 std with a correlation time of 1-4 s, each flight its own
+    path; shared: the switch-on bias."""
     channel = str(d.rng.choice([c for c in ("p", "q", "r", "phi", "theta") if c in d.outputs]))
     sigma = d.noise[channel] * d.strength
-    walk = BiasWalk(channel, d.sign() * d.rng.uniform(2.0, 4.0) * sigma,
-                    (d.rng.uniform(2.0, 4.0) * sigma) ** 2 / d.duration)
-    return Effects(bias=walk), {"output_bias_drift": {f"bias_{channel}": walk.start,
-                                                      f"walk_{channel}": float(np.sqrt(walk.intensity))}}
+    drift = BiasDrift(channel, d.sign() * d.rng.uniform(2.0, 4.0) * sigma, d.sign() * d.rng.uniform(2.0, 4.0) * sigma,
+                      d.rng.uniform(8.0, 25.0), d.rng.uniform(2.5, 4.0) * sigma, d.rng.uniform(1.0, 4.0))
+    return Effects(bias=drift), {"output_bias_drift": {f"bias_{channel}": drift.start}}
 
 
 def _rotor_droop(d: Dice) -> tuple[Effects, dict]:
-    """Droop of 3-8 % per stick of collective times strength (at most 30 %) under a 0.3-1 s governor, a yaw
-    authority of 40-80 rad/s^2 per unit speed change; shared: ``rotor_gain = -yaw droop`` (the steady yaw
-    acceleration per stick) and ``rotor_tau`` the governor's time constant."""
+    """Droop of 3-8 % per stick of collective times strength (at most 30 %) through a rotor of 0.3-1 s, restored
+    by a governor's integral action at 2-5 rad/s, a yaw authority of 40-80 rad/s^2 per unit speed change; shared:
+    ``rotor_gain = -yaw droop`` and ``rotor_tau`` the rotor's time constant (the onset of the droop, which the
+    candidate's first-order coupling holds where the governor restores the speed)."""
     governor = Governor(min(0.3, d.rng.uniform(0.03, 0.08) * d.strength), d.rng.uniform(0.3, 1.0),
-                        d.sign() * d.rng.uniform(40.0, 80.0))
+                        d.sign() * d.rng.uniform(40.0, 80.0), d.rng.uniform(2.0, 5.0) ** 2)
     return Effects(governor=governor), {"rotor_speed_coupling": {"rotor_gain": -governor.yaw * governor.droop,
                                                                  "rotor_tau": governor.tau}}
 
@@ -177,7 +195,7 @@ def _vibration(d: Dice) -> tuple[Effects, dict]:
 
 _DRAWS: dict[str, Callable[[Dice], tuple[Effects, dict]]] = {
     "servo_limits": _servo_limits, "logger_delay": _logger_delay, "servo_dynamics": _servo_dynamics,
-    "dryden": _dryden, "drag": _drag, "imu_misalignment": _imu_misalignment, "bias_walk": _bias_walk,
+    "dryden": _dryden, "drag": _drag, "imu_misalignment": _imu_misalignment, "bias_drift": _bias_drift,
     "rotor_droop": _rotor_droop, "quantisation": _quantisation, "vibration": _vibration,
 }
 
@@ -200,13 +218,14 @@ def draw(kind: str, dice: Dice) -> Injected:
 
 
 def join(a: Effects, b: Effects) -> Effects:
-    """Both ``a`` and ``b``: each absent part from the other, the servo chains axis by axis (the longer delay, the
-    tighter limit and rate, the slower servo)."""
+    """Both ``a`` and ``b``: each absent part from the other, the servo chains axis by axis (the longer delay,
+    jitter and loss, the tighter limit and rate, the slower servo, the wider backlash)."""
     parts = {f.name: getattr(a, f.name) if getattr(b, f.name) is None else getattr(b, f.name)
              for f in dataclasses.fields(Effects) if f.name != "servo"}
     sa, sb = a.servo, b.servo
     slower = [wa <= wb for wa, wb in zip(sa.wn, sb.wn)]
-    servo = Servo(tuple(map(max, sa.delay, sb.delay)), tuple(map(min, sa.limit, sb.limit)),
-                  tuple(map(min, sa.rate, sb.rate)), tuple(map(min, sa.wn, sb.wn)),
-                  tuple(za if s else zb for s, za, zb in zip(slower, sa.zeta, sb.zeta)))
+    servo = Servo(tuple(map(max, sa.delay, sb.delay)), max(sa.jitter, sb.jitter), max(sa.drop, sb.drop),
+                  tuple(map(min, sa.limit, sb.limit)), tuple(map(min, sa.rate, sb.rate)),
+                  tuple(map(min, sa.wn, sb.wn)), tuple(za if s else zb for s, za, zb in zip(slower, sa.zeta, sb.zeta)),
+                  tuple(map(max, sa.backlash, sb.backlash)))
     return Effects(servo=servo, **parts)
