@@ -9,7 +9,7 @@ from pathlib import Path
 from ..effects import registry as fx
 from ..evaluate import resolve_params
 from ..flights import DEFAULT_DATA
-from ..benchmark.blind import BOXES, TRUTHS_SIM, markdown, run_benchmark, summarise_records
+from ..benchmark.blind import BASES, BOXES, TRUTH_CLASSES, TRUTHS_SIM, markdown, run_benchmark, summarise_records
 from ..gap.compare import localise_model, write_localisation
 from ..gap.consistency import MAX_TRAVEL_M, check, write_check
 from ..gap.diagnose import diagnose, ranking_table, write_diagnosis
@@ -130,6 +130,13 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     p.add_argument("--refly-design", action="store_true",
                    help="fly spent design seeds again (to compare a rule before and after on the same flights; "
                         "still recorded); calibration and test seeds are never flown twice")
+    p.add_argument("--truths", choices=tuple(TRUTH_CLASSES), default="narrow",
+                   help="class of truth hover models: narrow (Table 2, R-50 and both perturbed by 30 %%), or wide "
+                        "(both perturbed, with heave, speed, pedal and collective couplings outside the authors' box; "
+                        "default narrow)")
+    p.add_argument("--base", choices=BASES, default="pem",
+                   help="how each trial's base model is identified on its training flight: PEM, IWO + polish, or "
+                        "identify's default method as a user of the command line gets it (default pem)")
     p.add_argument("--box", choices=tuple(BOXES), default="hull",
                    help="box the base model is identified and diagnosed in: the hull of both truth classes, or "
                         "the command line's default (the authors' TREX box, which the R-50 truths leave; default "
@@ -230,7 +237,8 @@ def _cmd_blind(args: argparse.Namespace) -> int:
                             truth=args.truth, split=args.split, control_seeds=args.control_seeds,
                             skip_seeds=args.skip_seeds, refly_design=args.refly_design, duration=args.duration,
                             dt=args.dt, max_steps=args.max_steps, pem_steps=args.pem_steps,
-                            iterations=args.iterations, box=args.box, segment=args.segment, restart=args.restart)
+                            iterations=args.iterations, box=args.box, segment=args.segment, restart=args.restart,
+                            base=args.base, truths=args.truths)
     print(markdown(summary))
     print(f"runtime {summary['runtime_s']:.0f} s; wrote {Path(args.out) / 'blind.json'} and blind.md")
     return 0

@@ -31,7 +31,7 @@ from ._pool import run_blind as run_blind
 from ._run import run_benchmark as run_benchmark
 from ._scenario import BOX as BOX, BOXES as BOXES, NOISES as NOISES, STRENGTHS as STRENGTHS, STYLES as STYLES
 from ._scenario import TRUTHS as TRUTHS, VALIDATE_EXCITATION as VALIDATE_EXCITATION, Scenario as Scenario
-from ._scenario import scenario as scenario
+from ._scenario import TRUTH_CLASSES as TRUTH_CLASSES, scenario as scenario
 from ._summary import detectable as detectable, explainable as explainable, identifiable as identifiable
 from ._summary import resolvable as resolvable, summarise as summarise, summarise_bases as summarise_bases
 from ._summary import summarise_records as summarise_records, wilson_interval as wilson_interval

@@ -23,12 +23,13 @@ from ._trial import Trial
 
 def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: int = 1, iwo_seeds: int = 0,
                   truth: str = "library", split: str = "design", control_seeds: int | None = None,
-                  skip_seeds: int = 0, refly_design: bool = False, **options: Any) -> dict[str, Any]:
+                  skip_seeds: int = 0, refly_design: bool = False, base: str = "pem",
+                  **options: Any) -> dict[str, Any]:
     """Run ``seeds`` blind trials per effect kind and ``control_seeds`` (default ``2 seeds``) of the control
     ``none``, on the first seeds of ``split`` after ``skip_seeds`` (the protocol of :mod:`jaxheli.gap.thresholds`:
     every kind meets the same scenarios; spent seeds are refused, design ones flown again only with
-    ``refly_design``), with a PEM base model, and the first ``iwo_seeds`` of them again with an IWO + polish base
-    (:func:`~jaxheli.benchmark.blind.base_model`), in ``workers`` processes. Every seed drawn is appended to the
+    ``refly_design``), with a ``base`` model (default PEM), and the first ``iwo_seeds`` of them again with an IWO +
+    polish base (:func:`~jaxheli.benchmark.blind.base_model`), in ``workers`` processes. Every seed drawn is appended to the
     seed ledger (:mod:`jaxheli.benchmark.ledger`) before the first trial; on the test split a second look under the
     same rules and simulator is refused first (:func:`~jaxheli.benchmark.ledger.refuse_second_look`). Writes
     ``OUT/blind.json`` (records, :func:`~jaxheli.benchmark.blind.summarise_bases`, the settings with the thresholds
@@ -51,19 +52,19 @@ def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: in
     entry = ledger.Entry({k: ledger.spans(s) for k, s in drawn.items() if s}, split, truth, ledger.now(),
                          _command(kinds, seeds, truth=truth, split=split, control_seeds=control_seeds,
                                   skip_seeds=skip_seeds, iwo_seeds=iwo_seeds, workers=workers,
-                                  refly_design=refly_design, **options),
+                                  refly_design=refly_design, base=base, **options),
                          look=split == "test", rules=rules, commit=ledger.head_commit())
     settings = {"kinds": list(kinds), "split": split, "seeds": seeds, "control_seeds": control_seeds,
                 "skip_seeds": skip_seeds,
                 "seed_range": [min(min(s) for s in drawn.values() if s), max(max(s) for s in drawn.values() if s)],
-                "iwo_seeds": iwo_seeds, "workers": workers, "truth": truth, **options,
+                "iwo_seeds": iwo_seeds, "workers": workers, "truth": truth, "base": base, **options,
                 "thresholds": {**thresholds, "file": THRESHOLDS.source},
-                "base_model": "PEM (every trial) or IWO + polish (the first iwo_seeds) on the contaminated "
+                "base_model": f"{base} (every trial) or IWO + polish (the first iwo_seeds) on the contaminated "
                               "training flight in the box blind.BOXES[box], never the truth",
                 "diagnosis": "joint re-identification (default of jaxheli diagnose)",
                 "ledger": {"file": str(ledger.path()), "entry": entry.to_json()}}
     order = sorted({s for ss in drawn.values() for s in ss})
-    trials = ([Trial(k, s) for s in order for k in kinds if s in drawn[k]]
+    trials = ([Trial(k, s, base) for s in order for k in kinds if s in drawn[k]]
               + [Trial(k, s, "iwo+polish") for k in kinds for s in drawn[k][:iwo_seeds]])
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

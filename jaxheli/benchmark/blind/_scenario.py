@@ -9,6 +9,7 @@ import numpy as np
 
 from ...model import LOWER, R50_SI, TABLE2, UPPER
 from ...synth.excitation import Excitation
+from ..truth import wide_truth
 
 STYLES: dict[str, Excitation] = {
     "doublets": Excitation("3211", amplitude=(0.2, 0.2, 0.2, 0.2), unit=0.3),
@@ -22,6 +23,11 @@ VALIDATE_EXCITATION = Excitation("3211", amplitude=(0.25, 0.25, 0.25, 0.25), uni
 
 TRUTHS: tuple[str, ...] = ("table2", "r50", "table2~", "r50~")
 """Truth models: the paper's Table 2 (TREX 550), Mettler's R-50 in SI, and each perturbed by up to +-30 %."""
+
+TRUTH_CLASSES: dict[str, tuple[str, ...]] = {"narrow": TRUTHS, "wide": ("table2+", "r50+")}
+"""Classes of truth models: ``narrow`` (:data:`TRUTHS`), or ``wide``: each reference perturbed by up to +-30 % with
+the couplings the authors' box pins or bounds tightly drawn at the sizes real rotorcraft have them
+(:func:`~jaxheli.benchmark.truth.wide_truth`), so a base model identified in that box is wrong somewhere."""
 
 NOISES: tuple[float, ...] = (1.0, 2.0)
 """Sensor-noise levels, multiples of :data:`~jaxheli.synth.piloted.DEFAULT_NOISE`."""
@@ -59,16 +65,23 @@ class Scenario:
     strength: float
 
 
-def scenario(seed: int) -> Scenario:
-    """The scenario of trial ``seed``: any 96 consecutive seeds meet every combination of :data:`TRUTHS`,
-    :data:`STYLES`, :data:`NOISES` and :data:`STRENGTHS` once, and a few consecutive seeds already differ in all
-    four (the combination index steps by 37, prime to 96); the perturbations of the ``~`` truths are drawn
-    from ``seed`` (uniform factors 0.7-1.3)."""
-    sizes = (len(TRUTHS), len(STYLES), len(NOISES), len(STRENGTHS))
+def scenario(seed: int, truths: str = "narrow") -> Scenario:
+    """The scenario of trial ``seed`` with a truth of the class ``truths`` (:data:`TRUTH_CLASSES`): any 96 (``wide``:
+    48) consecutive seeds meet every combination of the class's truths, :data:`STYLES`, :data:`NOISES` and
+    :data:`STRENGTHS` once, and a few consecutive seeds already differ in all four (the combination index steps by
+    37, prime to both); the perturbations of the ``~`` and ``+`` truths are drawn from ``seed`` (``~``: uniform
+    factors 0.7-1.3; ``+``: :func:`~jaxheli.benchmark.truth.wide_truth`)."""
+    if truths not in TRUTH_CLASSES:
+        raise ValueError(f"blind scenario: unknown truth class {truths!r}; classes are {tuple(TRUTH_CLASSES)}")
+    names = TRUTH_CLASSES[truths]
+    sizes = (len(names), len(STYLES), len(NOISES), len(STRENGTHS))
     code = (37 * seed) % int(np.prod(sizes))
     i, j, k, m = (code // int(np.prod(sizes[:n])) % sizes[n] for n in range(4))
-    truth = TRUTHS[i]
+    truth = names[i]
     theta = np.array(TABLE2 if truth.startswith("table2") else R50_SI)
+    rng = np.random.default_rng(1_000_003 + seed)
     if truth.endswith("~"):
-        theta = theta * np.random.default_rng(1_000_003 + seed).uniform(0.7, 1.3, theta.size)
+        theta = theta * rng.uniform(0.7, 1.3, theta.size)
+    if truth.endswith("+"):
+        theta = wide_truth(theta, rng)
     return Scenario(truth, theta, tuple(STYLES)[j], NOISES[k], STRENGTHS[m])

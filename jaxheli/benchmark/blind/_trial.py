@@ -36,7 +36,7 @@ class Trial(NamedTuple):
 def run_trial(
     kind: str, seed: int, *, base: str = "pem", truth: str = "library", duration: float = 30.0, dt: float = 0.05,
     segment: float = SEGMENT, max_steps: int = MAX_STEPS, pem_steps: int = 100, iterations: int = 1000,
-    min_shrink: float = MIN_SHRINK, box: str = "hull", restart: str = RESTART,
+    min_shrink: float = MIN_SHRINK, box: str = "hull", restart: str = RESTART, truths: str = "narrow",
 ) -> dict[str, Any]:
     """One blind trial: scenario and injection of ``seed``, flights, base model identified on the training
     flight by ``base`` (:func:`base_model`), joint diagnosis and oracle; the record (verdict, attribution, shrinks,
@@ -45,7 +45,8 @@ def run_trial(
     magnitude is the one the diagnosis reports for the true kind (the oracle's): re-identified on both flights
     where it is the named effect, else its training fit (``estimate``, ``magnitude_error``); beside it the training
     fit's (``estimate_train``, ``magnitude_error_train``) and the oracle's (``oracle_estimate``,
-    ``oracle_magnitude_error``). The base model is identified, and the diagnosis starts, in ``box``
+    ``oracle_magnitude_error``). The truth is of the class ``truths`` (:data:`TRUTH_CLASSES`). The base model is
+    identified, and the diagnosis starts, in ``box``
     (:data:`BOXES`); the base model's structure is its first hypothesis (:func:`~jaxheli.gap.ranking.staged`).
     Every prediction restarts every ``segment`` s from the filter's state (``restart="filter"``) or from that
     state re-estimated by the segment's own readings
@@ -54,7 +55,7 @@ def run_trial(
     if box not in BOXES:
         raise ValueError(f"blind trial: unknown box {box!r}; boxes are {tuple(BOXES)}")
     smooth = smooths(restart, "blind trial")
-    where = scenario(seed)
+    where = scenario(seed, truths)
     inj, train, validate, right, facts = trial_flights(truth, kind, seed, where, duration=duration, dt=dt,
                                                        outputs=DEFAULT_OUTPUTS)
     flat = set(constant_outputs(train)) | set(constant_outputs(validate))
@@ -80,7 +81,7 @@ def run_trial(
             final = final_fit(train_pred, validate_pred, best, stages.box)
     top = best.effect if best else "none"
     oracle_z, oracle_stderr = np.asarray(scored.fit.z[-1]), np.asarray(scored.fit.stderr[-1])
-    record = {"kind": kind, "seed": int(seed), "truth_sim": truth, **facts, "truth": where.truth,
+    record = {"kind": kind, "seed": int(seed), "truth_sim": truth, **facts, "truth": where.truth, "truth_class": truths,
               "style": where.style, "noise": where.noise, "strength": where.strength, "top": top,
               "correct": top in right,
               "in_tie": top in right or (best is not None and any(k in best.tied_with for k in right)),
