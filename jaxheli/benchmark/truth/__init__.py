@@ -10,7 +10,8 @@ from ._airframe import Drag as Drag, Governor as Governor
 from ._class import COUPLINGS as COUPLINGS, outside_box as outside_box, wide_truth as wide_truth
 from ._flight import NOISE as NOISE, OUTPUTS as OUTPUTS, Effects as Effects, Record as Record, fly as fly
 from ._hover import STATES as STATES, STICKS as STICKS, gust_matrix as gust_matrix, hover_model as hover_model
-from ._kinds import KIND_CANDIDATES as KIND_CANDIDATES, KINDS as KINDS, SINGLE as SINGLE, Dice as Dice
+from ._kinds import IN_FAMILY as IN_FAMILY, KIND_CANDIDATES as KIND_CANDIDATES, KINDS as KINDS, SINGLE as SINGLE
+from ._kinds import Dice as Dice
 from ._kinds import Injected as Injected, draw as draw, join as join
 from ._pilot import excitation as excitation, lqr_gain as lqr_gain
 from ._sensors import BiasDrift as BiasDrift, Imu as Imu, Quantiser as Quantiser, Vibration as Vibration, read as read
