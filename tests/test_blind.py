@@ -14,10 +14,11 @@ from jaxheli.effects import plant as augmented
 from jaxheli.effects import registry as fx
 from jaxheli.benchmark import ledger
 from jaxheli.benchmark.blind import (
-    BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, base_model, blind_flights, explainable, markdown, resolvable,
+    BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, base_model, blind_flights, explainable, forms, markdown, resolvable,
     run_blind, sample_injection, scenario, summarise, summarise_bases, summarise_records, wilson_interval,
 )
 from jaxheli.benchmark.blind._pool import _process_on, _worker_cores
+from jaxheli.benchmark.truth import outside_box
 from jaxheli.cli import main
 from jaxheli.gap.significance import MIN_SHRINK
 from jaxheli.model import R50_SI, TABLE2
@@ -76,6 +77,18 @@ def test_scenarios_cover_every_combination_and_the_box_holds_every_truth():
         assert np.all((0.7 <= ratio) & (ratio <= 1.3)) and np.all(w.theta[reference == 0] == 0)
         assert np.all((lower <= w.theta) & (w.theta <= upper)), seed
     np.testing.assert_array_equal(scenario(5).theta, scenario(5).theta)
+
+
+
+def test_wide_scenarios_cover_their_combinations_with_truths_outside_the_authors_box():
+    seen = {(w.truth, w.style, w.noise, w.strength) for w in (scenario(s, "wide") for s in range(48))}
+    assert len(seen) == 48 and {t for t, *_ in seen} == {"table2+", "r50+"}
+    for seed in range(10):
+        w = scenario(seed, "wide")
+        assert {"Nw", "Mu", "Mv", "Nv"} <= set(outside_box(w.theta)), seed
+    np.testing.assert_array_equal(scenario(7, "wide").theta, scenario(7, "wide").theta)
+    with pytest.raises(ValueError, match="unknown truth class"):
+        scenario(0, "other")
 
 
 RECORDS = [
@@ -153,9 +166,26 @@ def test_other_base_methods_are_summarised_beside_pem_on_the_same_trials():
     assert both["iwo+polish"]["false_positive_pct"] == 50.0 and both["pem"]["false_positive_pct"] == 0.0
     assert both["pem"]["kinds"]["none"]["trials"] == 2
     text = markdown(s)
-    assert "### Base model by iwo+polish against PEM, on the same trials (seeds 0-1)" in text
+    assert "### Base model by iwo+polish against pem, on the same trials (seeds 0-1)" in text
     assert text.count("False positives on effect-free flights") == 3
     assert summarise_bases(records[:3])["bases"] == {}
+    default = summarise_bases([{**r, "base": {"method": "iwo+freq+polish"}} for r in records[:3]])
+    assert default["base"] == "iwo+freq+polish" and default["kinds"]["none"]["trials"] == 3
+
+
+def test_the_independent_trials_are_pooled_by_form_in_family_and_other():
+    def trial(kind, correct, resolvable=True, truth_sim="independent"):
+        return {"kind": kind, "correct": correct, "truth_sim": truth_sim, "detectable": True,
+                "resolvable": resolvable}
+
+    rows = [trial("drag", True), trial("servo_limits", False), trial("logger_delay", True),
+            trial("bias_drift", False, resolvable=False), trial("two_at_once", True), trial("quantisation", False),
+            trial("input_delay", False, truth_sim="library"), trial("none", True)]
+    pooled = forms(rows)
+    assert pooled["in-family"]["trials"] == 2 and pooled["in-family"]["top1_pct"] == 50.0
+    other = pooled["other forms"]
+    assert other["trials"] == 3 and other["top1_pct"] == pytest.approx(200 / 3)
+    assert other["resolvable_trials"] == 2 and other["top1_resolvable_pct"] == 100.0
 
 
 def test_trials_run_on_the_protocols_seeds_and_record_the_thresholds(tmp_path, monkeypatch):

@@ -39,11 +39,16 @@ def markdown(summary: dict[str, Any]) -> str:
                      f" | {error(row.get('oracle_magnitude_error_median_identifiable'))}"
                      f" | {cell(row.get('shrink_vs_oracle_pct'), '.1f')} | {cell(row.get('structure_pct'), '.0f')}"
                      f" | {row.get('explainable_trials', '-')} | {cell(row.get('top1_explainable_pct'), '.0f')} |")
+    for label, pool in summary.get("forms", {}).items():
+        lines.append(f"\nPooled over the {label} kinds (independent simulator): top-1 {cell(pool['top1_pct'], '.0f')} % "
+                     f"of {pool['trials']} trials, {cell(pool.get('top1_resolvable_pct'), '.0f')} % of the "
+                     f"{pool.get('resolvable_trials', 0)} resolvable")
     ci = summary.get("false_positive_ci95_pct")
     lines.append(f"\nFalse positives on effect-free flights: {cell(summary['false_positive_pct'], '.0f')} %"
                  + (f" ({summary['false_positives']} of {summary['controls']}; 95 % Wilson interval "
                     f"{ci[0]:.0f}-{ci[1]:.0f} %)" if ci else ""))
     for method, both in summary.get("bases", {}).items():
-        lines.append(f"\n### Base model by {method} against PEM, on the same trials (seeds {both['seeds']})\n")
-        lines += [f"{m}:\n\n{markdown(both[m])}\n" for m in (method, "pem")]
+        main = summary.get("base", "pem")
+        lines.append(f"\n### Base model by {method} against {main}, on the same trials (seeds {both['seeds']})\n")
+        lines += [f"{m}:\n\n{markdown(both[m])}\n" for m in (method, main)]
     return "\n".join(lines)

@@ -12,7 +12,7 @@ import numpy as np
 import scipy.stats
 
 from ...gap.significance import MIN_SHRINK, MIN_Z
-from ._base import BASES
+from ..truth import IN_FAMILY, KIND_CANDIDATES
 
 
 def identifiable(record: dict[str, Any]) -> bool:
@@ -98,9 +98,25 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
         table[kind] = row
     controls = [r for r in records if r["kind"] == "none"]
     named = [r["top"] != "none" for r in controls]
-    return {"kinds": table, "false_positive_pct": _pct(named), "false_positives": sum(named),
-            "controls": len(controls), "false_positive_ci95_pct": wilson_interval(sum(named), len(controls))
-            if controls else None}
+    return {"kinds": table, "forms": forms(records), "false_positive_pct": _pct(named),
+            "false_positives": sum(named), "controls": len(controls),
+            "false_positive_ci95_pct": wilson_interval(sum(named), len(controls)) if controls else None}
+
+
+def forms(records: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Top-1 pooled over the independent simulator's effect trials by form: ``in-family`` (the kinds of
+    :data:`~jaxheli.benchmark.truth.IN_FAMILY`, whose nearest candidate comes within the noise) and ``other forms``
+    (every other kind that a candidate counts as naming, ``two_at_once`` included), over all trials and over the
+    resolvable ones (:func:`resolvable`)."""
+    pools = {"in-family": lambda k: k in IN_FAMILY,
+             "other forms": lambda k: k not in IN_FAMILY and k in KIND_CANDIDATES and KIND_CANDIDATES[k] != ("none",)}
+    out = {}
+    for label, member in pools.items():
+        rows = [r for r in records if r.get("truth_sim") == "independent" and member(r["kind"])]
+        if rows:
+            out[label] = {"trials": len(rows), "top1_pct": _pct([r["correct"] for r in rows]),
+                          **_subset([r for r in rows if resolvable(r)], "resolvable")}
+    return out
 
 
 def wilson_interval(k: int, n: int) -> tuple[float, float]:
@@ -111,18 +127,19 @@ def wilson_interval(k: int, n: int) -> tuple[float, float]:
 
 
 def summarise_bases(records: list[dict[str, Any]]) -> dict[str, Any]:
-    """:func:`summarise` of the PEM-base trials, with ``"bases"``: for every other base method (:data:`BASES`) that
-    ran, its summary and the PEM-base summary of the same trials (kind and seed), side by side."""
-    pem_rows = [r for r in records if r["base"]["method"] == "pem"]
-    summary = summarise(pem_rows)
-    summary["bases"] = {}
-    for method in BASES[1:]:
+    """:func:`summarise` of the trials of the run's main base method (its first record's, ``"base"``), with
+    ``"bases"``: for every other base method that ran, its summary and the main base's summary of the same trials
+    (kind and seed), side by side."""
+    main = records[0]["base"]["method"] if records else "pem"
+    main_rows = [r for r in records if r["base"]["method"] == main]
+    summary = summarise(main_rows)
+    summary["base"], summary["bases"] = main, {}
+    for method in dict.fromkeys(r["base"]["method"] for r in records if r["base"]["method"] != main):
         rows = [r for r in records if r["base"]["method"] == method]
-        if rows:
-            same = {(r["kind"], r["seed"]) for r in rows}
-            seeds = sorted({r["seed"] for r in rows})
-            summary["bases"][method] = {"seeds": f"{seeds[0]}-{seeds[-1]}", method: summarise(rows),
-                                        "pem": summarise([r for r in pem_rows if (r["kind"], r["seed"]) in same])}
+        same = {(r["kind"], r["seed"]) for r in rows}
+        seeds = sorted({r["seed"] for r in rows})
+        summary["bases"][method] = {"seeds": f"{seeds[0]}-{seeds[-1]}", method: summarise(rows),
+                                    main: summarise([r for r in main_rows if (r["kind"], r["seed"]) in same])}
     return summary
 
 
