@@ -1,8 +1,10 @@
 """An independent truth simulator for the blind check of the gap diagnosis (plain numpy/scipy).
 
 Mettler's hover model rebuilt from ``DESIGN.md``, flown at a fine internal step by a pilot of its own, with effects
-written the way the hardware and the air have them, each in a form unlike the catalogue candidate that should name
-it; only parameter names and reference parameter vectors come from :mod:`jaxheli.model`. :func:`truth_trial` draws
+written the way the hardware and the air have them, in forms that no catalogue candidate reproduces within the sensor
+noise but for the kinds of :data:`IN_FAMILY` (``tests/test_truth_forms.py``); only parameter names, reference
+parameter vectors and the authors' box come from :mod:`jaxheli.model`. Truth hover models of a wider class than the
+authors' box: :func:`wide_truth`. :func:`truth_trial` draws
 a kind and flies a training and a validation flight, and decides detectability before any fit.
 """
 
