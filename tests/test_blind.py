@@ -12,7 +12,7 @@ import pytest
 from jaxheli._affinity import cores
 from jaxheli.effects import plant as augmented
 from jaxheli.effects import registry as fx
-from jaxheli.benchmark import ledger
+from jaxheli.gap import ledger
 from jaxheli.benchmark.blind import (
     BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, base_model, blind_flights, explainable, forms, markdown, resolvable,
     run_blind, sample_injection, scenario, summarise, summarise_bases, summarise_records, wilson_interval,

@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from jaxheli.benchmark import ledger
+from jaxheli.gap import ledger
 from jaxheli.benchmark.blind import _run
 from jaxheli.cli import main
 from jaxheli.gap.thresholds import THRESHOLDS
@@ -61,7 +61,7 @@ def test_a_spent_seed_is_refused_with_where_the_unspent_ones_start(tmp_ledger, t
     message = str(err.value)
     assert "\n" not in message
     assert message.startswith(f"design seeds 31-33 are spent (ledger {tmp_ledger}); ")
-    assert "the first 3 unspent start at 0: pass --skip-seeds 0" in message
+    assert "the first 3 unspent start at 0: skip 0 seeds" in message
     assert main(argv) == 2 and len(ledger.read(tmp_ledger)) == 1
     assert main([*argv, "--refly-design"]) == 0 and len(ledger.read(tmp_ledger)) == 2
 
@@ -70,9 +70,9 @@ def test_the_protocol_refuses_spent_seeds_and_names_the_next_unspent_run():
     spent = set(range(1000, 1040)) | {1045}
     assert PROTOCOL.seeds("test", 5, 40, spent=spent) == [1040, 1041, 1042, 1043, 1044]
     with pytest.raises(ValueError, match=r"test seeds 1000-1009 are spent \(ledger .*\); the first 10 unspent start "
-                                         r"at 1046: pass --skip-seeds 46$"):
+                                         r"at 1046: skip 46 seeds$"):
         PROTOCOL.seeds("test", 10, spent=spent)
-    with pytest.raises(ValueError, match="the first 5 unspent start at 1040: pass --skip-seeds 40"):
+    with pytest.raises(ValueError, match="the first 5 unspent start at 1040: skip 40 seeds"):
         PROTOCOL.seeds("test", 5, 10, spent=spent)
     first, last = PROTOCOL.calibration
     with pytest.raises(ValueError, match=f"no 2 consecutive unspent calibration seeds are left in {first}-{last}$"):
@@ -120,7 +120,7 @@ def test_the_committed_ledger_holds_the_runs_before_it():
                                         "5000-5279, 6000-6159")
     assert {e.split for e in entries} == {"design", "calibration", "test"}
     assert all(e.look == (e.split == "test") for e in entries)
-    with pytest.raises(ValueError, match="the first 20 unspent start at 1040: pass --skip-seeds 40"):
+    with pytest.raises(ValueError, match="the first 20 unspent start at 1040: skip 40 seeds"):
         PROTOCOL.seeds("test", 20, spent=spent)
-    with pytest.raises(ValueError, match="the first 10 unspent start at 30: pass --skip-seeds 30"):
+    with pytest.raises(ValueError, match="the first 10 unspent start at 30: skip 30 seeds"):
         PROTOCOL.seeds("design", 10, spent=spent)

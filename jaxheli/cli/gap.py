@@ -124,7 +124,7 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     p.add_argument("--skip-seeds", type=int, default=0,
                    help="start this many seeds into the split (e.g. --split test --skip-seeds 1000: test seeds from "
                         "2000; default 0). A seed once flown, in any split, is spent: every seed a run draws, "
-                        "controls included, is appended to the seed ledger (jaxheli/benchmark/seed_ledger.jsonl, "
+                        "controls included, is appended to the seed ledger (jaxheli/gap/seed_ledger.jsonl, "
                         "or $JAXHELI_LEDGER) before it flies, and a spent seed is refused with the --skip-seeds of "
                         "the first unspent ones")
     p.add_argument("--refly-design", action="store_true",

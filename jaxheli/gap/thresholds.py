@@ -4,7 +4,7 @@ beside this module, or ``$JAXHELI_THRESHOLDS``), the only place the diagnosis an
 Each value records the commit that set it and the seeds it was set on. The protocol: design seeds (where rules are
 tried), calibration seeds (they set every value here), test seeds (looked at once per rule change, reported, never used
 to change a value). A value changed after a test run voids that run's numbers. A seed once flown, in any split, is
-spent: :meth:`Protocol.seeds` refuses the seeds of the ledger (:mod:`jaxheli.benchmark.ledger`).
+spent: :meth:`Protocol.seeds` refuses the seeds of the ledger (:mod:`jaxheli.gap.ledger`).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import json
 import os
 from pathlib import Path
 
-from ..benchmark import ledger
+from . import ledger
 
 FILE = Path(__file__).with_name("thresholds.json")
 """The thresholds file shipped with the package."""
@@ -37,7 +37,7 @@ class Protocol:
         """``count`` seeds of ``split`` (``"design"``, ``"calibration"`` or ``"test"``), from its first after
         ``skip``, none of them spent: a ``ValueError`` names the spent ones, the ledger and where the first run of
         ``count`` unspent seeds of the split starts. ``spent`` defaults to the ledger's seeds
-        (:func:`jaxheli.benchmark.ledger.spent`); ``refly`` lets design seeds be flown again (while a rule is being
+        (:func:`jaxheli.gap.ledger.spent`); ``refly`` lets design seeds be flown again (while a rule is being
         tried on them), never calibration or test seeds."""
         first, last = self._range(split)
         if skip < 0:
@@ -62,16 +62,16 @@ class Protocol:
         return ranges[split]
 
     def _next(self, split: str, count: int, used: set[int]) -> str:
-        """Where the first ``count`` consecutive unspent seeds of ``split`` start, as the ``--skip-seeds`` to pass."""
+        """Where the first ``count`` consecutive unspent seeds of ``split`` start, as the seeds to skip."""
         first, last = self._range(split)
         start = first
         while last is None or start + count - 1 <= last:
             clash = [s for s in range(start, start + count) if s in used]
             if not clash:
-                more = " (or fly design seeds again with --refly-design)" if split == "design" else ""
-                return f"the first {count} unspent start at {start}: pass --skip-seeds {start - first}{more}"
+                more = " (or fly design seeds again, refly)" if split == "design" else ""
+                return f"the first {count} unspent start at {start}: skip {start - first} seeds{more}"
             start = max(clash) + 1
-        more = "; design seeds may be flown again with --refly-design" if split == "design" else ""
+        more = "; design seeds may be flown again (refly)" if split == "design" else ""
         return f"no {count} consecutive unspent {split} seeds are left in {first}-{last}{more}"
 
 

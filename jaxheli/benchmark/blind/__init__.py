@@ -19,7 +19,7 @@ Modules, one job each: :mod:`._scenario` (truth, pilot style, noise, strength pe
 :mod:`._injection` (the library simulator's withheld effect), :mod:`._flights` (either simulator's flights and the
 noise-free pairs that decide detectability), :mod:`._base` (the base model), :mod:`._trial` (one trial and its
 record), :mod:`._pool` (trials in processes pinned to cores), :mod:`._summary` and :mod:`._markdown` (statistics and
-tables) and :mod:`._run` (a run on the protocol's seeds, recorded in the seed ledger, :mod:`jaxheli.benchmark.ledger`).
+tables) and :mod:`._run` (a run on the protocol's seeds, recorded in the seed ledger, :mod:`jaxheli.gap.ledger`).
 """
 
 from ._base import BASES as BASES, base_model as base_model

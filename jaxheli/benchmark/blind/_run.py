@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from ...gap.thresholds import THRESHOLDS
-from .. import ledger
+from ...gap import ledger
 from ._flights import TRUTHS_SIM
 from ._markdown import markdown
 from ._pool import run_blind
@@ -30,8 +30,8 @@ def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: in
     every kind meets the same scenarios; spent seeds are refused, design ones flown again only with
     ``refly_design``), with a ``base`` model (default PEM), and the first ``iwo_seeds`` of them again with an IWO +
     polish base (:func:`~jaxheli.benchmark.blind.base_model`), in ``workers`` processes. Every seed drawn is appended to the
-    seed ledger (:mod:`jaxheli.benchmark.ledger`) before the first trial; on the test split a second look under the
-    same rules and simulator is refused first (:func:`~jaxheli.benchmark.ledger.refuse_second_look`). Writes
+    seed ledger (:mod:`jaxheli.gap.ledger`) before the first trial; on the test split a second look under the
+    same rules and simulator is refused first (:func:`~jaxheli.gap.ledger.refuse_second_look`). Writes
     ``OUT/blind.json`` (records, :func:`~jaxheli.benchmark.blind.summarise_bases`, the settings with the thresholds
     in force and the ledger entry) and ``OUT/blind.md`` after every trial. ``truth`` picks the truth simulator
     (:data:`~jaxheli.benchmark.blind.TRUTHS_SIM`), whose kinds ``kinds`` are."""
