@@ -225,7 +225,18 @@ def render_verify(rec: dict) -> str:
     return "\n\n".join(parts)
 
 
-RENDERERS = {"identify": render_identify, "verify": render_verify}
+def render_truth_forms(rec: dict) -> str:
+    """One row per kind and truth: the effect's size and the residual its nearest candidate leaves, in sensor-noise
+    std, per seed."""
+    rows = [[r["truth"], f"`{r['kind']}`", r["row"], r["seed"], r["size"], r["residual"], f"`{r['nearest']}`",
+             "yes" if r["residual"] <= 1.0 else "no"] for r in rec["output"]["rows"]]
+    return ("Noise-free flights; the nearest candidate fitted alone with the truth's own hover model under the "
+            "diagnosis's predictor. A residual above 1 (sensor-noise std) puts the kind outside the candidate's "
+            "family.\n\n" + _table(["truth", "kind", "row", "seed", "size", "residual", "nearest candidate",
+                                    "within the noise"], rows))
+
+
+RENDERERS = {"identify": render_identify, "verify": render_verify, "truth_forms": render_truth_forms}
 """How each kind of record is drawn; a new kind (e.g. ``bench.json``) needs its renderer here."""
 
 INTRO = """# Benchmarks
