@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Sequence
-from typing import Any, Literal
+from typing import Any
 
 import jax
 import numpy as np
@@ -25,8 +25,6 @@ from .optim.frequency_fit import FrequencyFitResult, cifer_report
 from .optim.uncertainty import Uncertainty, cramer_rao_coverage, standard_errors
 from .problem import Problem, Records, as_problem, make_problem, parts
 from .stages import FrequencyFit, PEM, Polish, Record, Search, Stage, Task, method_chain
-
-Method = Literal["iwo", "ga", "pem", "iwo+polish", "freq", "freq+polish", "iwo+freq+polish"]
 
 
 @dataclasses.dataclass
@@ -53,7 +51,7 @@ class IdentificationResult:
         frequency: frequency methods: Tischler's ``J`` per (input, output) pair at ``params``, their bins, the
             average ``J`` and ``acceptable`` (``<= 100``), with the best trial's frequency fit under ``"fit"``
             (its own ``J``s, starts, band; :class:`~jaxheli.optim.frequency_fit.FrequencyFitResult`); else ``None``.
-        fixed: with ``structure=True``, the parameters the model-structure determination fixed,
+        fixed: after a model-structure determination (:class:`~jaxheli.stages.Structure`), the parameters it fixed,
             ``{name: {"value", "reason", "round", "relative_se", "partner", "rho", "source"}}``
             (:class:`~jaxheli.optim.structure.FixedParameter`; empty when it fixed none); else ``None``.
         structure: its rounds, the output-error sums of squares before and after, and its settings
@@ -124,7 +122,7 @@ _ABSENT: dict[str, Any] = {**Search().settings(), **PEM().settings(), **Frequenc
 
 def identify(
     data: FlightData | Sequence[FlightData] | Problem | Records,
-    method: Method | Sequence[Stage] = "iwo+freq+polish",
+    method: str | Sequence[Stage] = "iwo+freq+polish",
     *,
     validate: FlightData | None = None,
     trials: int = 1,

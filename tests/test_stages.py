@@ -4,8 +4,10 @@ before anything runs."""
 
 import re
 
+import numpy as np
 import pytest
 
+from jaxheli.benchmark.throughput import bench_flight
 from jaxheli.cli import build_parser, main
 from jaxheli.cli.identify import _FREQ_OPTIONS, _KEYWORDS, _identify_options
 from jaxheli.identify import identify
@@ -77,8 +79,18 @@ def test_a_named_method_is_its_chain_of_stages():
     assert method_chain("pem", {"structure": True, "pem_segment": 4.0}) == ("pem", (Structure(PEM(segment=4.0)),))
 
 
+@pytest.mark.slow  # two PEM fits and their scores
+def test_a_chain_of_stages_runs_as_the_named_method():
+    flight = bench_flight(200)
+    named = identify(flight, "pem", pem_segment=1.0, prior="table2")
+    built = identify(flight, (PEM(segment=1.0, prior="table2"),))
+    assert built.method == "pem" and built.settings == named.settings and built.settings["prior"] == "table2"
+    assert np.array_equal(built.params, named.params) and built.stderr == named.stderr
+
+
 def test_a_chain_of_stages_takes_the_problem_settings_it_uses_only():
     assert method_chain((Search(engine="ga"), Polish()), {"cost": "output-error"})[0] == "ga+polish"
+    assert method_chain((FrequencyFit(), Structure(Polish())), {"cost": "output-error"})[0] == "freq+polish"
     with pytest.raises(ValueError, match="'iterations' is a named method's option; set it on the chain's stage"):
         method_chain((Search(),), {"iterations": 3})
     with pytest.raises(ValueError, match="method 'pem' does not use 'search_precision'"):

@@ -60,7 +60,7 @@ class FrequencyFit(Stage):
             if starts is None:
                 raise
             skipped = f"frequency fit skipped, IWO's best polished alone: {error}"
-            warnings.warn(skipped, stacklevel=4)
+            warnings.warn(skipped, stacklevel=3)
             return Starts(starts.params, starts.costs), Record(skipped=skipped)
         found = Starts(np.stack([f.theta for f in fits]), np.array([f.j_average for f in fits]),
                        also=None if starts is None else starts.params)

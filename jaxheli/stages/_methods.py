@@ -65,10 +65,11 @@ stage's only: a later one starts from the trials before it."""
 
 
 def _users(chain: tuple[Stage, ...], keyword: str) -> list[int]:
-    """Indices of ``chain``'s stages that use ``keyword``."""
+    """Indices of ``chain``'s stages that use ``keyword`` (a structure determination's: its fit's)."""
     kinds, target = KEYWORDS[keyword]
     last = len(chain) - 1 if target is Structure else None
-    return [i for i, s in enumerate(chain) if isinstance(s, kinds) and (keyword != "start" or i == 0)
+    fits = [s.fit if isinstance(s, Structure) else s for s in chain]
+    return [i for i, s in enumerate(fits) if isinstance(s, kinds) and (keyword != "start" or i == 0)
             and (last is None or i == last)]
 
 
