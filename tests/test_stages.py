@@ -116,6 +116,7 @@ def test_a_stage_out_of_place_is_refused(stages, message):
     (lambda: Structure(FrequencyFit()), "fit must be a PEM or Polish stage"),
     (lambda: FrequencyFit(options={"start": TABLE2}), "unknown options \\['start'\\]"),
     (lambda: Search(iterations=0), "iterations and chunk must be >= 1"),
+    (lambda: Search(engine="ga", options={"modulation": 3.0}), "unknown options \\['modulation'\\] of GA"),
 ])
 def test_a_stage_refuses_options_it_cannot_use(make, message):
     with pytest.raises(ValueError, match=message):

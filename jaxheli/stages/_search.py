@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, ClassVar, Literal
 
 import equinox as eqx
@@ -44,6 +45,10 @@ class Search(Stage):
             raise ValueError(f"Search: engine must be one of {tuple(_ENGINES)}, got {self.engine!r}")
         if self.iterations < 1 or self.chunk < 1:
             raise ValueError(f"Search: iterations and chunk must be >= 1, got {self.iterations}, {self.chunk}")
+        known = {f.name for f in dataclasses.fields(_ENGINES[self.engine])} - {"lower", "upper", "iterations"}
+        if set(self.options) - known:
+            raise ValueError(f"Search: unknown options {sorted(set(self.options) - known)} of {self.engine.upper()}; "
+                             f"it takes {sorted(known)}")
 
     @property
     def name(self) -> str:
