@@ -180,7 +180,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     if uses(args.method, "checkpoint"):
         options.update(checkpoint=str(out / "checkpoint.eqx"), progress=not args.quiet)
     box = named_box(args.box)
-    result = identify(train, args.method, validate=validate, trials=args.trials, seed=args.seed,
+    result = identify(train, method=args.method, validate=validate, trials=args.trials, seed=args.seed,
                       outputs=outputs(args.outputs), lower=np.asarray(box.lower, np.float64),
                       upper=np.asarray(box.upper, np.float64), **sim_options(args), **options)
     truth = result.truth or {}
