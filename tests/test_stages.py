@@ -17,7 +17,7 @@ from jaxheli.stages import (CHAINS, KEYWORDS, METHODS, PEM, FrequencyFit, Polish
 
 SAMPLES = {
     "outputs": ("p", "q"), "segment": 2.0, "hold": "foh", "g": 9.8, "lower": LOWER, "upper": UPPER,
-    "cost": "output-error", "search_precision": "float64", "iterations": 3, "engine_options": {"modulation": 3.0},
+    "cost": "output-error", "search_precision": "float64", "iterations": 3, "engine_options": {"sigma_final": 0.002},
     "chunk": 5, "checkpoint": "run.eqx", "resume": True, "progress": False, "start": TABLE2, "pem_segment": 4.0,
     "freq_options": {"starts": 2}, "polish_objective": "pem", "polish_steps": 3, "polish_rounds": 2,
     "cv_windows": 2, "prior": "table2", "prior_sd": 20.0, "structure": True,
