@@ -47,9 +47,10 @@ import jaxheli
 from jaxheli.data.preprocess import split
 from jaxheli.benchmark.blind import BOX
 from jaxheli.gap.prepare import prepare
-from jaxheli.identify import METHODS, identify, validation_block
+from jaxheli.identify import identify, validation_block
 from jaxheli.io.paths import data_file
 from jaxheli.model import LOWER, R50_SI, TABLE2, UPPER
+from jaxheli.stages import METHODS, uses
 from jaxheli.spectra import estimate_frequency_response
 from jaxheli.synth.excitation import Excitation
 from jaxheli.synth.piloted import DEFAULT_EXCITATION, Pilot, piloted_flight
@@ -63,6 +64,11 @@ REAL_CHANNELS = ("p", "q", "phi", "theta")
 REAL_LOWPASS_HZ = 3.0
 RUN_S = 5.0
 """Verification run length, s (issue 35's measure: each run from its least-squares start with a per-channel bias)."""
+
+
+def _search(method: str, iterations: int) -> dict:
+    """The population search's options where ``method`` has one (identify refuses them elsewhere)."""
+    return {"iterations": iterations, "progress": False} if uses(method, "iterations") else {}
 
 
 def synthetic_flights(theta: np.ndarray, noise: float) -> tuple[jaxheli.FlightData, jaxheli.FlightData]:
@@ -80,8 +86,8 @@ def _synthetic(args: argparse.Namespace, out: Path) -> list[dict]:
             train, validate = synthetic_flights(theta, noise)
             for method in args.methods:
                 t0 = time.perf_counter()
-                res = identify(train, method=method, validate=validate, iterations=args.iterations, seed=args.seed,
-                               lower=lower, upper=upper, truth=theta, progress=False)
+                res = identify(train, method=method, validate=validate, seed=args.seed, lower=lower, upper=upper,
+                               truth=theta, **_search(method, args.iterations))
                 fit = res.validate["fit_percent"]
                 truth_fit = res.truth["validate"]["fit_percent"]
                 rows.append({
@@ -153,8 +159,8 @@ def _real(args: argparse.Namespace, out: Path) -> list[dict]:
         for method in args.methods:
             for cv in args.cv_windows if method.endswith("+polish") else [0]:
                 t0 = time.perf_counter()
-                res = identify(train, method=method, iterations=args.iterations, seed=args.seed, cv_windows=cv,
-                               prior=args.prior, prior_sd=args.prior_sd, progress=False)
+                res = identify(train, method=method, seed=args.seed, cv_windows=cv or None, prior=args.prior,
+                               prior_sd=args.prior_sd if args.prior else None, **_search(method, args.iterations))
                 seconds = time.perf_counter() - t0
                 chosen = (res.polish or {}).get("cross_validation")
                 name = method if not cv else f"{method}, cv {cv}: {chosen['final_s']:.3g} s x {chosen['rounds']}"

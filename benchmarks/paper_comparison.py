@@ -42,6 +42,7 @@ from jaxheli.identify import identify, validation_block
 from jaxheli.model import PARAM_NAMES
 from jaxheli.data.preprocess import lowpass, trim
 from jaxheli.results import save_result
+from jaxheli.stages import uses
 
 CHANNELS = ("p", "q", "phi", "theta")
 PAPER_TABLE1 = {
@@ -121,10 +122,9 @@ def main() -> None:
     engine_options = {"iwo": iwo_options, "iwo+polish": iwo_options}
     for method in args.methods:
         t0 = time.perf_counter()
-        res = identify(train, method=method, validate=flight_c, iterations=args.iterations, trials=args.trials,
-                       outputs=outputs, engine_options=engine_options.get(method),
-                       checkpoint=str(out / f"{method}.ckpt") if method != "pem" else None,
-                       **sim)
+        search = {"iterations": args.iterations, "engine_options": engine_options.get(method),
+                  "checkpoint": str(out / f"{method}.ckpt")} if uses(method, "iterations") else {}
+        res = identify(train, method=method, validate=flight_c, trials=args.trials, outputs=outputs, **search, **sim)
         seconds = time.perf_counter() - t0
         save_result(res, out / method.replace("+", "_"), train, flight_c)
         candidates = {method: res.params}

@@ -60,7 +60,7 @@ def run_pair(name: str, train: jaxheli.FlightData, validate: jaxheli.FlightData,
     folder.mkdir(parents=True, exist_ok=True)
     jaxheli.save_npz(train, folder / "train.npz")
     jaxheli.save_npz(validate, folder / "validate.npz")
-    result = jaxheli.identify(train, method="pem", validate=validate, progress=True)
+    result = jaxheli.identify(train, method="pem", validate=validate)
     save_result(result, folder / "pem", train, validate)
     diagnosis = diagnose(result.params, train, validate)
     write_diagnosis(diagnosis, result.params, validate, folder / "diagnosis")

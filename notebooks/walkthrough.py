@@ -207,7 +207,7 @@ print(f"output error {r.polish['objective_before']:.4f} after IWO -> {r.polish['
 # box with the same cost as IWO.
 
 # %%
-results["pem"] = jaxheli.identify(train, method="pem", validate=validate, progress=False)
+results["pem"] = jaxheli.identify(train, method="pem", validate=validate)
 results["ga"] = jaxheli.identify(train, method="ga", validate=validate, iterations=ITERATIONS, trials=TRIALS,
                                  seed=0, progress=False)
 for method, res in results.items():

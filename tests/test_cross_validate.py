@@ -75,13 +75,15 @@ def test_stop_ends_the_schedule_early_without_changing_it(flight, start):
     assert [r["segment_s"] for r in capped.settings["rounds"]] == [[5.0], [5.0]]  # no cap below 5 s: every run 5 s
 
 
-@pytest.mark.parametrize("method, objective, several", [("iwo", "output-error", False),
-                                                         ("iwo+polish", "pearson", False),
-                                                         ("iwo+polish", "output-error", True)])
-def test_identify_refuses_cross_validation_it_cannot_do(flight, method, objective, several):
+@pytest.mark.parametrize("method, options, several, message", [
+    ("iwo", {}, False, "method 'iwo' does not use 'cv_windows'"),
+    ("iwo+polish", {"polish_objective": "pearson"}, False, "cv_windows need the output-error objective"),
+    ("iwo+polish", {}, True, "cv_windows needs one training flight"),
+])
+def test_identify_refuses_cross_validation_it_cannot_do(flight, method, options, several, message):
     data = [flight, flight] if several else flight
-    with pytest.raises(ValueError, match="cv_windows needs a \\+polish method on the output-error objective"):
-        identify(data, method=method, polish_objective=objective, cv_windows=4, iterations=1, progress=False)
+    with pytest.raises(ValueError, match=message):
+        identify(data, method=method, cv_windows=4, iterations=1, progress=False, **options)
 
 
 def test_identify_refuses_windows_too_short_before_any_search(flight):

@@ -97,7 +97,7 @@ def test_freq_polish_recovers_the_truth_from_a_perturbed_start(flights):
     train, validate = flights
     start = np.clip(TABLE2 * (1 + 0.3 * np.random.default_rng(6).uniform(-1, 1, 40)), LOWER, UPPER)
     result = identify(train, method="freq+polish", validate=validate, start=start, seed=0, freq_options=ENGINE,
-                      polish_steps=30, polish_rounds=2, progress=False)
+                      polish_steps=30, polish_rounds=2)
     truth = validation_block(TABLE2, validate, CHANNELS)
     freq = result.frequency
     assert freq["fit"]["j_average"] < 50 and freq["acceptable"], freq  # the frequency fit alone: excellent

@@ -61,7 +61,7 @@ def test_pem_matches_truth_on_validation(flights):
     train, validate = flights
     rng = np.random.default_rng(0)
     start = TABLE2 * (1 + 0.1 * rng.uniform(-1, 1, 40))
-    result = identify(train, method="pem", validate=validate, start=start, pem_segment=5.0, progress=False)
+    result = identify(train, method="pem", validate=validate, start=start, pem_segment=5.0)
     truth = _truth_validation(validate)
     for c in CHANNELS:
         assert abs(result.validate["pearson"][c] - truth["pearson"][c]) < 0.01, c
@@ -131,7 +131,7 @@ def test_a_problem_with_conflicting_flight_settings_is_refused():
     assert "\n" not in str(info.value)
     with pytest.raises(ValueError, match="upper="):
         identify(problem, method="pem", upper=UPPER + 1.0)
-    result = identify(problem, method="pem", segment=2.0, outputs=["p", "q"], iterations=1, progress=False)
+    result = identify(problem, method="pem", segment=2.0, outputs=["p", "q"])
     assert tuple(result.settings["outputs"]) == ("p", "q") and result.settings["segment"] == 2.0
 
 
@@ -143,7 +143,7 @@ def test_the_result_records_the_box_it_searched_and_flags_its_bounds_against_it(
     lower, upper = LOWER.copy(), UPPER.copy()
     i = PARAM_NAMES.index("Lb")
     upper[i] = 125.0  # below Table 2's Lb (133.6), which the roll response fixes: the fit ends on this bound
-    result = identify(bench_flight(200), method="pem", lower=lower, upper=upper, progress=False)
+    result = identify(bench_flight(200), method="pem", lower=lower, upper=upper)
     assert result.settings["upper"] == upper.tolist() and result.settings["lower"] == lower.tolist()
     flagged = {a.name: a for a in result_at_bounds(result)}
     assert flagged["Lb"].side == "upper" and flagged["Lb"].bound == 125.0
@@ -154,10 +154,10 @@ def test_the_polish_rounds_are_recorded_on_the_scale_of_its_objective():
     output-error round and one for the other objectives."""
     from types import SimpleNamespace
 
-    from jaxheli.identify import _objective_rounds
+    from jaxheli.stages._polish import objective_rounds
 
     res = SimpleNamespace(cost_start=2.0, cost=1.0, rss_start=40.0, rss=10.0, settings={"objective": "pem"})
-    assert _objective_rounds(res, "pearson", 10) == [[2.0, 1.0]]
-    assert _objective_rounds(res, "pem", 10) == [[4.0, 1.0]]
+    assert objective_rounds(res, "pearson", 10) == [[2.0, 1.0]]
+    assert objective_rounds(res, "pem", 10) == [[4.0, 1.0]]
     res.settings = {"rounds": [{"rss_start": 40.0, "rss": 20.0}, {"rss_start": 30.0, "rss": 10.0}]}
-    assert _objective_rounds(res, "output-error", 10) == [[4.0, 2.0], [3.0, 1.0]]
+    assert objective_rounds(res, "output-error", 10) == [[4.0, 2.0], [3.0, 1.0]]

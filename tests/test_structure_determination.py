@@ -60,7 +60,7 @@ def still_pedal():
     start = TABLE2.copy()
     start[IDX] *= 1.0 + 0.1 * np.where(np.arange(len(IDX)) % 2, 1.0, -1.0)
     return flight, identify(flight, method="pem", lower=np.asarray(box.lower), upper=np.asarray(box.upper),
-                            start=start, pem_segment=4.0, structure=True, progress=False)
+                            start=start, pem_segment=4.0, structure=True)
 
 
 def test_a_stick_that_never_moves_fixes_its_parameter_and_the_rest_are_recovered(still_pedal):
@@ -94,8 +94,10 @@ def test_result_json_round_trips_fixed(still_pedal, tmp_path):
 
 
 def test_structure_needs_a_least_squares_fit():
-    with pytest.raises(ValueError, match="structure=True needs a least-squares fit"):
+    with pytest.raises(ValueError, match="method 'iwo' does not use 'structure'"):
         identify(_flight(duration=1.0), method="iwo", structure=True, iterations=1)
+    with pytest.raises(ValueError, match="needs a least-squares fit to repeat"):
+        identify(_flight(duration=1.0), method="iwo+polish", structure=True, polish_objective="pearson")
 
 
 def test_the_console_prints_one_line_per_fixed_parameter(still_pedal, capsys):
@@ -261,8 +263,9 @@ def test_the_command_line_passes_the_box_the_structure_and_the_prior(monkeypatch
     np.testing.assert_array_equal(seen["lower"], np.minimum(WIDE_LOWER, LOWER))
     np.testing.assert_array_equal(seen["upper"], np.maximum(WIDE_UPPER, UPPER))
     assert seen["structure"] is True and seen["prior"] == "table2" and seen["prior_sd"] == 20.0
+    seen.clear()
     with pytest.raises(_Stop):
         main(args)
     np.testing.assert_array_equal(seen["lower"], LOWER)
     np.testing.assert_array_equal(seen["upper"], UPPER)
-    assert seen["structure"] is False and seen["prior"] is None
+    assert not {"structure", "prior", "prior_sd"} & set(seen)  # options not given are not passed

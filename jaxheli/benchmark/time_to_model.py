@@ -19,6 +19,7 @@ from ..identify import identify
 from ..io import load
 from ..io.paths import data_file
 from ..optim.pem import pem
+from ..stages import uses
 
 PAPER_PREPARATION = {"trim_samples": 50, "correct_data": True, "lowpass_hz": 3.0}
 """How ``benchmarks/paper_comparison.py`` prepares flight A for training (:func:`jaxheli.gap.prepare.prepare`)."""
@@ -101,7 +102,8 @@ def _row(flight: FlightData, method: str, iterations: int, pem_steps: int, seed:
                "rss_start": fit.rss_start, "rss": fit.rss, "result": fit.result,
                "simulations": fit.n_steps * (len(fit.free) + 1)}
     else:
-        result = identify(flight, method=method, iterations=iterations, trials=1, seed=seed, progress=False)
+        search = {"iterations": iterations, "progress": False} if uses(method, "iterations") else {}
+        result = identify(flight, method=method, trials=1, seed=seed, **search)
         row = {"method": method, "seconds": time.perf_counter() - start,
                "fit_percent": result.train["fit_percent"], "pearson": result.train["pearson"],
                "simulations": result.settings["evaluations"] if method.startswith("iwo") else None}

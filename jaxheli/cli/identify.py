@@ -11,12 +11,26 @@ import numpy as np
 from ..cost import SEARCH_COSTS
 from ..flights import DEFAULT_DATA
 from ..bounds import BOXES, named_box
-from ..identify import METHODS, PRIOR_SD
 from ..optim.frequency_fit import MAX_STEPS as FREQ_STEPS, STARTS as FREQ_STARTS
 from ..optim.polish import POLISH_OBJECTIVES
+from ..stages import METHODS, PRIOR_SD, used_by, uses
 from ._options import (add_data_option, add_flight_option, add_load_options, add_quiet_option, add_sim_options,
                        outputs, read_flight, sim_options)
 from .verify import print_modes, print_verification
+
+
+_KEYWORDS = {"iterations": "--iterations", "resume": "--resume", "chunk": "--checkpoint-every",
+             "search_precision": "--search-precision", "cost": "--cost", "polish_objective": "--polish-objective",
+             "polish_steps": "--polish-steps", "polish_rounds": "--polish-rounds", "cv_windows": "--cv-windows",
+             "structure": "--structure", "prior": "--prior", "prior_sd": "--prior-sd"}
+"""identify's option keywords and the options of ``jaxheli identify`` that give them (passed only when given)."""
+
+_FREQ_OPTIONS = {"starts": "--freq-starts", "screen": "--freq-screen", "max_steps": "--freq-steps",
+                 "band": "--freq-band"}
+"""The frequency fit's keywords (identify's ``freq_options``) and the options that give them."""
+
+_FREQ_DEFAULTS = {"starts": FREQ_STARTS, "screen": 2000, "max_steps": FREQ_STEPS, "band": None}
+"""What the frequency fit's options are where not given."""
 
 
 def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -31,26 +45,26 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                        f"(default: {DEFAULT_DATA})", aliases=("--train",), several=True)
     add_flight_option(p, "--validate", "the validation flight (optional)")
     p.add_argument("--out", default="jaxheli-result", help="output folder (result.json, result.npz, PNGs)")
-    p.add_argument("--iterations", type=int, default=1000, help="IWO / GA generations (default 1000, the paper)")
+    p.add_argument("--iterations", type=int, default=None, help="IWO / GA generations (default 1000, the paper)")
     p.add_argument("--trials", type=int, default=1, help="independent trials for 95%% intervals (the paper: 10)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.eqx")
-    p.add_argument("--checkpoint-every", type=int, default=50, metavar="N",
+    p.add_argument("--checkpoint-every", type=int, default=None, metavar="N",
                    help="write OUT/checkpoint.eqx every N generations (default 50); a resume continues from it")
-    p.add_argument("--search-precision", choices=("float32", "float64"), default="float32",
+    p.add_argument("--search-precision", choices=("float32", "float64"), default=None,
                    help="arithmetic of the IWO / GA population scoring (default float32: fast, checked against float64)")
     add_load_options(p)
-    p.add_argument("--cost", choices=SEARCH_COSTS, default="pearson",
+    p.add_argument("--cost", choices=SEARCH_COSTS, default=None,
                    help="what IWO / GA minimise: pearson (default, the paper's Eq. 7) or output-error")
-    p.add_argument("--polish-objective", choices=POLISH_OBJECTIVES, default="output-error",
+    p.add_argument("--polish-objective", choices=POLISH_OBJECTIVES, default=None,
                    help="what the polish of iwo+polish minimises: output-error (default: normalised output errors, "
                         "every run from its least-squares state, runs shortened where the model is unstable), "
                         "pearson (with --cost pearson: the paper's pure pipeline) or pem")
-    p.add_argument("--polish-steps", type=int, default=100,
+    p.add_argument("--polish-steps", type=int, default=None,
                    help="Levenberg-Marquardt steps per polish round (default 100)")
-    p.add_argument("--polish-rounds", type=int, default=4,
+    p.add_argument("--polish-rounds", type=int, default=None,
                    help="output-error polish: at most this many rounds, the first on 5 s then 20 s runs (default 4)")
-    p.add_argument("--cv-windows", type=int, default=0, metavar="W",
+    p.add_argument("--cv-windows", type=int, default=None, metavar="W",
                    help="output-error polish on one flight: choose its last run length (5 s, 20 s, a window's length) "
                         "and stopping round by leave-one-window-out cross-validation over W windows of the flight "
                         "(W fits of each run length, each on W - 1 windows; default 0: the full schedule)")
@@ -64,16 +78,17 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     p.add_argument("--prior", default=None, metavar="MODEL",
                    help="a prior model (result.json or table2): a Gaussian prior in the local fits (PEM, polish) "
                         "and the values --structure fixes parameters at")
-    p.add_argument("--prior-sd", type=float, default=PRIOR_SD, metavar="PCT",
+    p.add_argument("--prior-sd", type=float, default=None, metavar="PCT",
                    help=f"the prior's standard deviation, %% of each value, floored at 1 %% of the parameter's "
                         f"physical range (default {PRIOR_SD:g})")
-    p.add_argument("--freq-starts", type=int, default=FREQ_STARTS, metavar="K",
+    p.add_argument("--freq-starts", type=int, default=None, metavar="K",
                    help="freq: Levenberg-Marquardt starts, the best of --freq-screen draws in the box (default "
-                        "%(default)s)")
-    p.add_argument("--freq-screen", type=int, default=2000, metavar="S",
-                   help="freq: points drawn in the box and scored on J to choose the starts (default 2000)")
-    p.add_argument("--freq-steps", type=int, default=FREQ_STEPS, metavar="N",
-                   help="freq: Levenberg-Marquardt step limit of each start (default %(default)s)")
+                        f"{_FREQ_DEFAULTS['starts']})")
+    p.add_argument("--freq-screen", type=int, default=None, metavar="S",
+                   help=f"freq: points drawn in the box and scored on J to choose the starts (default "
+                        f"{_FREQ_DEFAULTS['screen']})")
+    p.add_argument("--freq-steps", type=int, default=None, metavar="N",
+                   help=f"freq: Levenberg-Marquardt step limit of each start (default {_FREQ_DEFAULTS['max_steps']})")
     p.add_argument("--freq-band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                    help="freq: fitted band, Hz (default 0.1 Hz to a third of Nyquist, at most 10 Hz)")
     add_sim_options(p)
@@ -156,41 +171,18 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from ..results import result_at_bounds, result_modes, save_result
     from ..verify import verify
 
-    if args.checkpoint_every < 1:
-        raise ValueError(f"--checkpoint-every: must be >= 1 generation, got {args.checkpoint_every}")
+    options = _identify_options(args)
     records = [read_flight(spec, args) for spec in args.data or [DEFAULT_DATA]]
     train = records[0] if len(records) == 1 else records
     validate = None if not args.validate else read_flight(args.validate, args)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if uses(args.method, "checkpoint"):
+        options.update(checkpoint=str(out / "checkpoint.eqx"), progress=not args.quiet)
     box = named_box(args.box)
-    result = identify(
-        train,
-        method=args.method,
-        validate=validate,
-        iterations=args.iterations,
-        trials=args.trials,
-        seed=args.seed,
-        outputs=outputs(args.outputs),
-        cost=args.cost,
-        polish_objective=args.polish_objective,
-        polish_steps=args.polish_steps,
-        polish_rounds=args.polish_rounds,
-        cv_windows=args.cv_windows,
-        checkpoint=None if args.method.startswith(("pem", "freq")) else str(out / "checkpoint.eqx"),
-        resume=args.resume,
-        progress=not args.quiet,
-        chunk=args.checkpoint_every,
-        search_precision=args.search_precision,
-        lower=np.asarray(box.lower, np.float64),
-        upper=np.asarray(box.upper, np.float64),
-        structure=args.structure,
-        prior=args.prior,
-        prior_sd=args.prior_sd,
-        freq_options={"starts": args.freq_starts, "screen": args.freq_screen, "max_steps": args.freq_steps,
-                      "band": None if args.freq_band is None else tuple(args.freq_band)},
-        **sim_options(args),
-    )
+    result = identify(train, method=args.method, validate=validate, trials=args.trials, seed=args.seed,
+                      outputs=outputs(args.outputs), lower=np.asarray(box.lower, np.float64),
+                      upper=np.asarray(box.upper, np.float64), **sim_options(args), **options)
     truth = result.truth or {}
     sources = " + ".join(f.source for f in records)
     _print_metrics(f"{args.method} on the training flight {sources}, initial state estimated"
@@ -224,6 +216,31 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     for path in save_result(result, out, train, validate):
         print(f"wrote {path}")
     return 0
+
+
+def _identify_options(args: argparse.Namespace) -> dict:
+    """identify's options from the command line: those given, each refused with a one-line ``ValueError`` where
+    ``--method`` does not use it, and the frequency fit's (every one, defaults too) where it runs."""
+    given = {key: getattr(args, _dest(option)) for key, option in _KEYWORDS.items()}
+    given = {key: value for key, value in given.items() if value is not None and value is not False}
+    freq = {key: getattr(args, _dest(option)) for key, option in _FREQ_OPTIONS.items()}
+    unused = [(key, option) for key, option in _KEYWORDS.items() if key in given and not uses(args.method, key)]
+    if not uses(args.method, "freq_options"):
+        unused += [("freq_options", option) for key, option in _FREQ_OPTIONS.items() if freq[key] is not None]
+    if unused:
+        key, option = unused[0]
+        raise ValueError(f"{option}: method {args.method!r} does not use it (used by: {used_by(key)})")
+    if given.get("chunk", 1) < 1:
+        raise ValueError(f"--checkpoint-every: must be >= 1 generation, got {given['chunk']}")
+    if uses(args.method, "freq_options"):
+        freq = {key: _FREQ_DEFAULTS[key] if value is None else value for key, value in freq.items()}
+        given["freq_options"] = {**freq, "band": None if freq["band"] is None else tuple(freq["band"])}
+    return given
+
+
+def _dest(option: str) -> str:
+    """The attribute an option's value is stored under."""
+    return option.removeprefix("--").replace("-", "_")
 
 
 def print_fixed(fixed: dict | None, structure: dict | None) -> None:
