@@ -21,7 +21,7 @@ CPU (the ``jaxheli`` command does).
   ``evaluate``, ``metrics``, ``pearson``, ``paper_cost``, ``output_error_cost``, ``rmse``, ``tic``,
   ``fit_percent``, ``nmse``
 - identification: ``identify``, ``IdentificationResult``, ``save_result``, ``IWO``, ``GA``, ``minimize``,
-  ``minimize_trials``, ``pem``, ``polish``, ``standard_errors``
+  ``minimize_trials``, ``pem``, ``polish``, ``standard_errors``, and the stages ``identify`` chains: ``stages``
 - checking a model: ``verify``, ``Verification``, ``save_verification``, ``modes``, ``Mode``
 - the gap diagnosis: ``gap``
 - the report: ``build_report``, ``write_report``
@@ -30,7 +30,7 @@ CPU (the ``jaxheli`` command does).
 - setup: ``configure_xla``
 """
 
-from . import gap as gap
+from . import gap as gap, stages as stages
 from ._xla import configure_xla as configure_xla
 from .bounds import Bounds as Bounds
 from .cost import fit_percent as fit_percent, metrics as metrics, nmse as nmse

@@ -24,8 +24,8 @@ def _documented() -> set[str]:
 
 def test_exports_are_exactly_the_documented_names() -> None:
     public = {n for n, v in vars(jaxheli).items() if not n.startswith("_") and not isinstance(v, types.ModuleType)}
-    assert public | {"gap"} == _documented()
-    assert isinstance(jaxheli.gap, types.ModuleType)
+    assert public | {"gap", "stages"} == _documented()
+    assert isinstance(jaxheli.gap, types.ModuleType) and isinstance(jaxheli.stages, types.ModuleType)
 
 
 def test_every_name_is_re_exported_as_itself() -> None:
