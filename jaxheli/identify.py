@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -56,6 +57,8 @@ class IdentificationResult:
             (:class:`~jaxheli.optim.structure.FixedParameter`; empty when it fixed none); else ``None``.
         structure: its rounds, the output-error sums of squares before and after, and its settings
             (:meth:`~jaxheli.optim.structure.StructureResult.to_json` without ``fixed``); else ``None``.
+        convergence: methods fitted by PEM: each trial's Levenberg-Marquardt ``steps``, ``result`` and whether it
+            ``converged``, and whether the best trial did (``result.json`` holds it only then); else ``None``.
     """
 
     method: str
@@ -75,6 +78,7 @@ class IdentificationResult:
     frequency: dict[str, Any] | None = None
     fixed: dict[str, dict[str, Any]] | None = None
     structure: dict[str, Any] | None = None
+    convergence: dict[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready content (``result.json``); parameters and intervals named as in :data:`PARAM_NAMES`."""
@@ -94,7 +98,7 @@ class IdentificationResult:
             "frequency": self.frequency,
             "fixed": self.fixed,
             "structure": self.structure,
-        }
+        } | ({} if self.convergence is None else {"convergence": self.convergence})
 
 
 def intervals95(trial_params: Float[np.ndarray, "K 40"]) -> dict[str, tuple[float, float]] | None:
@@ -168,6 +172,7 @@ def identify(
         starts, found = step(task, starts)
         record = record.merge(found)
     params = starts.params[starts.best] if record.structure is None else record.structure.theta
+    convergence = None if record.convergence is None else _convergence(record.convergence, starts.best)
     fitted, scored = chain[-1].errors_problem(task.problem, params), chain[-1].fitted(task.problem)
     seconds = time.perf_counter() - t0
     if record.structure is None:
@@ -215,7 +220,19 @@ def identify(
             frequency=None if record.fits is None else _frequency_block(record.fits, params),
             fixed=None if found is None else found.fixed_dict(),
             structure=None if found is None else {k: v for k, v in found.to_json().items() if k != "fixed"},
+            convergence=convergence,
         )
+
+
+def _convergence(trials: list[dict[str, Any]], best: int) -> dict[str, Any]:
+    """The local fit's convergence per trial and of the best; a warning when the best stopped at its step limit
+    (its answer may lie short of the optimum of its own objective)."""
+    chosen = trials[best]
+    if not chosen["converged"]:
+        warnings.warn(f"identify: the best trial's least-squares fit stopped before converging ({chosen['result']} "
+                      f"after {chosen['steps']} steps): its parameters may lie short of the optimum; give it more "
+                      "steps", stacklevel=3)
+    return {"trials": trials, "converged": bool(chosen["converged"])}
 
 
 def scores(params: Float[np.ndarray, "40"], problem: Problem | Records) -> dict[str, Any]:

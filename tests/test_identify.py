@@ -12,6 +12,7 @@ from jaxheli.identify import identify, intervals95, validation_block
 from jaxheli.io import save_npz
 from jaxheli.model import LOWER, PARAM_NAMES, TABLE2, UPPER
 from jaxheli.synth.piloted import piloted_flight
+from jaxheli.stages import PEM
 
 FREE = ("Xu", "Yv", "Lb", "Ma", "Zw", "Nr", "Alon", "Blat")
 """Parameters the population test frees (rotor-to-body moments, dampings, control power)."""
@@ -65,6 +66,15 @@ def test_pem_matches_truth_on_validation(flights):
     truth = _truth_validation(validate)
     for c in CHANNELS:
         assert abs(result.validate["pearson"][c] - truth["pearson"][c]) < 0.01, c
+    assert result.convergence["converged"] and result.to_json()["convergence"] == result.convergence
+
+
+def test_a_pem_base_that_stops_at_its_step_limit_says_so(flights):
+    train, _ = flights
+    with pytest.warns(UserWarning, match="stopped before converging"):
+        result = identify(train, method=[PEM(steps=2)])
+    assert not result.convergence["converged"] and result.convergence["trials"][0]["steps"] == 2
+    assert "convergence" not in identify(train, method="iwo", iterations=2, progress=False).to_json()
 
 
 def test_intervals_are_t_intervals_of_the_trial_mean():

@@ -52,7 +52,8 @@ class PEM(Stage):
         drawn = [problem.bounds.uniform(k, 1)[0] for k in jax.random.split(key, trials - 1)] if trials > 1 else []
         prior = belief(self.prior, self.prior_sd)
         fits = [pem(problem, start=s, max_steps=self.steps, prior=prior) for s in [first, *drawn]]
-        return Starts(np.stack([f.theta for f in fits]), np.array([f.cost for f in fits])), Record()
+        converged = [{"steps": f.n_steps, "result": f.result, "converged": f.success} for f in fits]
+        return Starts(np.stack([f.theta for f in fits]), np.array([f.cost for f in fits])), Record(convergence=converged)
 
     def refit(self) -> dict[str, Any]:
         """How a structure determination repeats this fit (:func:`~jaxheli.optim.structure.determine_structure`)."""

@@ -67,6 +67,8 @@ class Record:
         skipped: why the frequency fit was skipped (no coherent pair), its warning.
         polish: the polish's summary (``IdentificationResult.polish``).
         structure: the model-structure determination.
+        convergence: each trial's local fit: Levenberg-Marquardt ``steps``, the solver's ``result`` and whether it
+            ``converged`` (its termination test passed within the step limit).
     """
 
     history: Float[np.ndarray, "K iterations"] | None = None
@@ -75,6 +77,7 @@ class Record:
     skipped: str | None = None
     polish: dict[str, Any] | None = None
     structure: StructureResult | None = None
+    convergence: list[dict[str, Any]] | None = None
 
     def merge(self, later: Record) -> Record:
         """This record with the fields ``later`` sets."""
