@@ -29,7 +29,7 @@ from ..effects import registry as fx
 from ..effects.plant import no_effect
 from .fit_effect import effect_eta, fit_candidates, fitted_nuisance, with_reference
 from .predictor import Predictor
-from .records import Entry, Final
+from .candidate_records import Entry, Final
 
 
 class Stacked(eqx.Module):

@@ -161,7 +161,7 @@ def noise_variance(outputs: Float[np.ndarray, "N k"]) -> Float[np.ndarray, "k"]:
 
 
 def make_predictor(
-    data: FlightData | Problem, *, segment: float = 2.0, g: float = G_SI, max_delay: float = 0.3,
+    data: FlightData | Problem, *, segment: float, g: float = G_SI, max_delay: float = 0.3,
     window: float = 0.5, track: float = TRACK, smooth: bool = False,
 ) -> Predictor:
     """Predictor of a record restarting every ``segment`` s from the filtered state (process noise ``track``,
@@ -182,7 +182,7 @@ def make_predictor(
     seg = int(round(segment / dt))
     if seg < 2 or seg >= n:
         raise ValueError(f"{source}: segment {segment:g} s must span 2 samples to the record length "
-                         f"({n} samples of {dt:g} s): choose a shorter one (--segment)")
+                         f"({n} samples of {dt:g} s): choose a shorter segment")
     if not track >= 0:
         raise ValueError(f"{source}: restart filter track {track} must be >= 0")
     win = int(round(window / dt))

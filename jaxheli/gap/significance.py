@@ -30,7 +30,7 @@ from .._types import Float
 from ..effects import registry as fx
 from .fit_effect import EffectFit, fitted_nuisance
 from .thresholds import THRESHOLDS
-from .records import Entry, LRTest
+from .candidate_records import Entry, LRTest
 
 MIN_SHRINK = THRESHOLDS.min_shrink
 """(Every value here is read from the thresholds file, :mod:`jaxheli.gap.thresholds`, which records the commit
