@@ -4,8 +4,7 @@ Every candidate (and the base model) is scored the same way: the augmented plant
 recorded sticks and restarted every ``segment`` seconds from the state a steady-state Kalman filter of the
 same candidate plant estimates from the sensor readings up to the restart (measurements passed back
 through the candidate's sensor model, :meth:`Plant.unmeasure`). Restarting from raw readings instead
-injects their noise into every segment: on the blind check's flights that propagated noise was half of
-the truth model's residual and made fitted delays and rotor time constants wander by a factor 2-3. The
+injects their noise into every segment, where it makes fitted delays and rotor time constants wander. The
 filter follows the measurements with process noise ``track`` times the measurement noise per sample;
 the diagnosis tunes ``track`` on the training flight (:func:`tune_track`): low when the model is close,
 high when it is far from the flight (identified models of real flights), so restarts stay near the data.
