@@ -147,6 +147,7 @@ def diagnose(
             gap_best=gaps[1],
             gap_combination=gaps[2] if len(gaps) > 2 else None,
             localisation_train=_localise_base(theta, train, preds[0], segment, restart) if localise_train else None,
+            validated=validate,
         )
 
 
@@ -196,15 +197,15 @@ def write_diagnosis(
     diagnosis: Diagnosis, theta: Float[np.ndarray, "40"], validate: FlightData, out: str | Path,
 ) -> list[Path]:
     """Write ``diagnosis.json`` (:meth:`~jaxheli.gap.records.Diagnosis.to_json`), ``consistency.json`` and the PNGs
-    (residual bands, lag correlation, frequency response, before/after time histories on ``validate``) into
-    ``out``."""
+    (residual bands, lag correlation, frequency response, before/after time histories on the validation flight as
+    diagnosed, ``diagnosis.validated``, or on ``validate`` for a diagnosis read back from JSON) into ``out``."""
     from ..plots import plot_frequency_response
     from .plots import plot_before_after, plot_lag_correlation, plot_residual_bands
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     names = diagnosis.outputs
-    flight = validate.select(names)
+    flight = diagnosis.validated if diagnosis.validated is not None else validate.select(names)
     content = diagnosis.to_json()
     local = diagnosis.localisation
     g = local.simulation["g"]

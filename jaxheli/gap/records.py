@@ -17,6 +17,7 @@ from .._json import json_ready
 from ._record import _Flat, _json, _maybe, _read
 from .candidate_records import Entry as Entry, Final as Final, LRTest as LRTest, Refit as Refit
 from .candidate_records import Structure as Structure
+from ..data.flight import FlightData
 from .localisation_record import Localisation
 from .verdict import Verdict, find
 
@@ -104,6 +105,8 @@ class Diagnosis:
             combination (``None`` without one).
         localisation_train: where it misses the training flight (``None``: not localised; JSON: the
             localisation's ``train``).
+        validated: the validation flight as diagnosed (its channels, at the diagnosis's step, corrected when asked):
+            what the plots show; not written to JSON (``None`` when read back).
     """
 
     model: str
@@ -118,6 +121,7 @@ class Diagnosis:
     gap_combination: Gap | None
     localisation_train: Localisation | None = None
     restart: str = "filter"
+    validated: FlightData | None = dataclasses.field(default=None, compare=False, repr=False)
 
     def to_json(self) -> dict[str, Any]:
         """``diagnosis.json``: strict JSON values (:func:`~jaxheli._json.json_ready`), ``gap_after`` holding the
@@ -145,6 +149,6 @@ class Diagnosis:
         return _read(cls, data, flights={role: FlightSummary.from_json(f) for role, f in data["flights"].items()},
                      localisation=Localisation.from_json(local),
                      localisation_train=_maybe(Localisation.from_json, local.get("train")),
-                     attribution=Attribution.from_json(data), restart=data.get("restart", "filter"),
+                     attribution=Attribution.from_json(data), restart=data.get("restart", "filter"), validated=None,
                      gap_before=Gap.from_json(data["gap_before"]), gap_best=Gap.from_json(after["best"]),
                      gap_combination=_maybe(Gap.from_json, after["combination"]))
