@@ -28,7 +28,8 @@ import jax
 import jaxheli
 from jaxheli.io.paths import data_dir, data_file
 from jaxheli.gap.consistency import check
-from jaxheli.gap.diagnose import diagnose, ranking_table, write_diagnosis
+from jaxheli.cli.diagnosis_text import ranking_table
+from jaxheli.gap.diagnose import diagnose, write_diagnosis
 from jaxheli.gap.prepare import prepare
 from jaxheli.data.preprocess import split
 from jaxheli.results import save_result

@@ -49,7 +49,8 @@ from jaxheli.synth.excitation import Excitation
 from jaxheli.effects import plant as augmented
 from jaxheli.gap import check, correct
 from jaxheli.gap.consistency import plot_kinematics
-from jaxheli.gap.diagnose import diagnose, ranking_table, write_diagnosis
+from jaxheli.cli.diagnosis_text import ranking_table
+from jaxheli.gap.diagnose import diagnose, write_diagnosis
 from jaxheli.report import SECTION_IDS
 from jaxheli.results import save_result
 

@@ -15,7 +15,8 @@ from jaxheli.cost import nmse
 from jaxheli.synth.excitation import Excitation
 from jaxheli.cli.gap import add_diagnose_parser as add_parser
 from jaxheli.effects import plant as augmented, registry as effects
-from jaxheli.gap.diagnose import diagnose, effect_eta, predictions, ranking_table, shared_outputs
+from jaxheli.cli.diagnosis_text import ranking_table
+from jaxheli.gap.diagnose import diagnose, effect_eta, predictions, shared_outputs
 from jaxheli.gap.records import Attribution, Diagnosis
 from jaxheli.gap.predictor import make_predictor
 from jaxheli.io import save_npz
@@ -185,7 +186,8 @@ def test_an_under_fitted_base_names_no_effect_on_an_independent_flight():
     base = pem(trial.train, max_steps=3, outputs=OUT).theta
     d = diagnose(base, trial.train, trial.validate, **OPTIONS).attribution
     assert d.base_refit.under_fitted
-    assert d.verdict.startswith("base model under-fitted")
+    assert d.verdict.under_fitted is d.base_refit and d.verdict.effect is None
+    assert str(d.verdict).startswith("base model under-fitted")
     assert not any(e.significant for e in d.ranking), d.verdict
 
 
@@ -202,8 +204,10 @@ def test_a_truth_outside_the_default_box_is_named_as_structure_not_an_effect():
     found = d.attribution
     s = found.structure
     assert s.significant and "Nw" in s.freed and s.freed["Nw"] > 0.5, s
-    assert "base model structure: " in found.verdict and "Nw freed" in found.verdict, found.verdict
-    assert found.verdict.endswith("no significant effect") and not any(e.significant for e in found.ranking)
+    assert found.verdict.structure is s and found.verdict.effect is None, found.verdict
+    text = str(found.verdict)
+    assert "base model structure: " in text and "Nw freed" in text, text
+    assert text.endswith("no significant effect") and not any(e.significant for e in found.ranking)
     assert found.final is None
     assert any(line.lstrip().startswith("(base, physical box)") and "Nw freed" in line for line in ranking_table(d))
     back = Attribution.from_json(found.to_json()).structure

@@ -55,7 +55,7 @@ def _diagnosis() -> Diagnosis:
                   theta=np.asarray(TABLE2) * 1.02, nuisance={"state_noise_cut": -0.1})
     final = Final(best.effect, best.fitted, rss=12.5, steps=60, theta=np.asarray(TABLE2) * 0.98,
                   nuisance={"state_noise_cut": 0.2})
-    attribution = Attribution((best, lag), combination, refit, "input_delay (...): gap shrinks", final, 0.3)
+    attribution = Attribution((best, lag), combination, refit, final, 0.3)
     flights = {role: FlightSummary(f"{role}.npz", 401, 0.05, ({"step": "trim", "samples": 2},))
                for role in ("train", "validate")}
     gap = Gap(dict.fromkeys(OUT, 0.2), 0.2)
@@ -100,8 +100,9 @@ def test_a_diagnosis_comes_back_from_strict_json():
     for field in ("shrink_pct", "gap_by_channel", "under_fitted", "settled", "steps", "nuisance"):
         assert getattr(b.base_refit, field) == getattr(a.base_refit, field), field
     np.testing.assert_array_equal(b.base_refit.theta, a.base_refit.theta)
-    assert (b.verdict, b.track, back.outputs, back.flights, back.consistency) == (
-        a.verdict, a.track, d.outputs, d.flights, d.consistency)
+    assert (str(b.verdict), b.track, back.outputs, back.flights, back.consistency) == (
+        str(a.verdict), a.track, d.outputs, d.flights, d.consistency)
+    assert content["verdict"] == str(a.verdict) and b.verdict.effect.effect == a.verdict.effect.effect
     assert (back.localisation, back.localisation_train) == (d.localisation, d.localisation_train)
     assert content["localisation"]["train"] == d.localisation_train.to_json()
     assert content["localisation"]["frequency_response"]["lat->p"]["magnitude_db"] is None

@@ -17,7 +17,8 @@ from jaxheli.cost import nmse
 from jaxheli.gap.predictor import TRACKS, make_predictor, noise_variance, tune_track
 from jaxheli.gap import fit_effect
 from jaxheli.gap.fit_effect import EffectFit
-from jaxheli.gap.ranking import explains_more, predictor_pair, rank_effects, structure_leads, verdict
+from jaxheli.gap.ranking import predictor_pair, rank_effects
+from jaxheli.gap.verdict import explains_more, find, structure_leads
 from jaxheli.gap.records import Structure
 from jaxheli.gap.significance import (
     EFFECT_SIGMA, HELD_OUT_SIGMA, LR_P, MIN_SHRINK, MIN_Z, TIE_SIGMA, HeldOut, lr_test, paired_se, shrink_entries,
@@ -75,7 +76,7 @@ def test_smoothed_restarts_match_numpy_least_squares_per_segment():
     energy = lambda y: np.sum((y - flight.outputs) ** 2, axis=0)
     assert np.all(energy(got) < energy(filtered))
     with pytest.raises(ValueError, match=r"segment 20 s must span 2 samples to the record length \(381 samples of "
-                                         r"0.05 s\): choose a shorter one \(--segment\)"):
+                                         r"0.05 s\): choose a shorter segment"):
         make_predictor(flight, segment=20.0, smooth=True)
 
 
@@ -281,7 +282,7 @@ def test_rank_effects_finds_an_injected_lon_delay():
     short = Excitation("3211", amplitude=(0.2,) * 4, unit=0.3)
     train = _flight(eta, seed=3, noise=1.0, duration=12.0, excitation=short)
     validate = _flight(eta, seed=4, noise=1.0, duration=12.0, excitation=Excitation("3211", amplitude=(0.25,) * 4, unit=0.35))
-    ranking = rank_effects(TABLE2, *predictor_pair(TABLE2, train, validate), max_steps=15, joint=False)
+    ranking = rank_effects(TABLE2, *predictor_pair(TABLE2, train, validate, segment=2.0), max_steps=15, joint=False)
     top = ranking[0]  # tests/test_blind.py's compile
     assert top.effect == "input_delay" and top.significant
     assert top.fitted.where == ("lon",)
@@ -289,7 +290,7 @@ def test_rank_effects_finds_an_injected_lon_delay():
     assert abs(est.value - delay) < max(4 * est.stderr, 0.005)
     assert top.shrink_pct > 50 and set(top.shrink_by_channel) == set(OUT)
     assert not ranking[-1].significant
-    assert verdict(ranking).startswith("input_delay")
+    assert find(ranking).effect is top and str(find(ranking)).startswith("input_delay")
 
 
 def _fit(z, stderr, rss=None):
@@ -357,7 +358,7 @@ def test_a_shrink_from_parameters_within_noise_of_no_effect_is_not_significant()
     assert weak.shrink_se_pct == pytest.approx(4.0) and weak.shrink_pct < HELD_OUT_SIGMA * weak.shrink_se_pct
     assert weak.shrink_pct > strong.shrink_pct > 3.0
     assert strong.significant and not weak.significant and strong.fitted.evidence_z == pytest.approx(16.0)
-    assert verdict([weak, strong]).startswith("input_delay (lat input delay delay 80 +- 5 ms)")
+    assert str(find([weak, strong])).startswith("input_delay (lat input delay delay 80 +- 5 ms)")
 
 
 def test_a_held_out_shrink_of_several_standard_errors_stands_for_a_size_whose_wald_z_says_nothing():
@@ -436,10 +437,10 @@ def test_an_effect_that_shrinks_the_gap_further_than_the_structure_leads_the_ver
     assert explains_more(delay, weaker) and not explains_more(delay, stronger) and not explains_more(delay, idle)
     assert not structure_leads([delay], weaker) and structure_leads([delay], stronger)
     assert not structure_leads([delay], idle) and not structure_leads([delay], None)
-    text = verdict([delay], structure=weaker)
+    text = str(find([delay], structure=weaker))
     assert text.startswith("input_delay (lat input delay delay 80 +- 5 ms): gap shrinks 40.0 %")
     assert text.endswith("more than the base model's structure (Xu beyond its bound (-3 past -1): 30.0 +- 5.0 %)")
-    assert verdict([delay], structure=stronger).startswith("base model structure: Xu beyond its bound")
+    assert str(find([delay], structure=stronger)).startswith("base model structure: Xu beyond its bound")
 
 
 def test_candidates_are_credited_beyond_the_better_model_without_an_effect():
@@ -500,7 +501,7 @@ def test_shrinks_within_their_paired_noise_are_a_tie_and_noise_alone_is_not_sign
     small = by["control_saturation"]
     assert small.shrink_pct == pytest.approx(4.0) and small.shrink_pct < EFFECT_SIGMA * small.shrink_se_pct
     assert not small.significant and small.tied_with == ()
-    assert " tied with " in verdict(ranking)
+    assert " tied with " in str(find(ranking))
     clean = _windows(np.random.default_rng(1), base, [0.30, 0.22], 0.01)
     apart = shrink_entries(["input_delay", "actuator_lag"], OUT, _fit(z[:2], np.full((2, k), 0.005)),
                            HeldOut(np.sum(clean, axis=1, keepdims=True) * np.ones((1, len(OUT))) / 40, clean), 3.0)

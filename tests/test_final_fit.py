@@ -29,7 +29,7 @@ def _drag_flights():
 
 
 def test_stacked_flights_are_their_residuals_one_after_the_other():
-    train, validate = predictor_pair(TABLE2, *_drag_flights())
+    train, validate = predictor_pair(TABLE2, *_drag_flights(), segment=2.0)
     eta = augmented.no_effect(OUT)
     both = Stacked((train, validate))
     parts = [np.asarray(p.residuals(TABLE2, eta)) for p in (train, validate)]
@@ -41,7 +41,7 @@ def test_a_drag_half_kept_by_the_base_model_is_recovered_on_both_flights():
     """Table 2 with a quadratic drag Xuu = -4 1/m on both flights (faint noise). The entry handed over is what a
     training fit leaves when the base model kept part of the drag: Xu 30 % too negative, the drag at half. Re-fitted
     on both flights, the drag comes back within 3 % of -4 (measured: -3.94) and Xu within 10 % of Table 2's (8 %)."""
-    train, validate = predictor_pair(TABLE2, *_drag_flights(), track=0.1)
+    train, validate = predictor_pair(TABLE2, *_drag_flights(), segment=2.0, track=0.1)
     start = np.array(TABLE2)
     xu = PARAM_NAMES.index("Xu")
     start[xu] *= 1.3

@@ -11,8 +11,9 @@ import pytest
 from jaxheli.effects import registry as fx
 from jaxheli.effects.plant import no_effect
 from jaxheli.gap.fit_effect import embed, score, with_reference
-from jaxheli.gap.ranking import fit_and_score, predictor_pair
-from jaxheli.gap.reference import Scored, base_refit, challenge, follow, refit_alone, theta_box
+from jaxheli.gap.candidates import challenge, fit_and_score, follow
+from jaxheli.gap.ranking import predictor_pair
+from jaxheli.gap.reference import Scored, base_refit, refit_alone, theta_box
 from jaxheli.gap.significance import HeldOut
 from jaxheli.model import TABLE2
 from jaxheli.synth.excitation import Excitation

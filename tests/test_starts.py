@@ -4,7 +4,7 @@ import numpy as np
 
 from jaxheli.effects import plant as augmented, registry as effects
 from jaxheli.gap.fit_effect import with_reference
-from jaxheli.gap.reference import best_rows
+from jaxheli.gap.candidates import best_rows
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS
 
 OUT = DEFAULT_OUTPUTS

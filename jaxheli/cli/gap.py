@@ -12,12 +12,13 @@ from ..flights import DEFAULT_DATA
 from ..benchmark.blind import BASES, BOXES, TRUTH_CLASSES, TRUTHS_SIM, markdown, run_benchmark, summarise_records
 from ..gap.compare import localise_model, write_localisation
 from ..gap.consistency import MAX_TRAVEL_M, check, write_check
-from ..gap.diagnose import diagnose, ranking_table, write_diagnosis
+from ..gap.diagnose import diagnose, write_diagnosis
 from ..gap.fit_effect import MAX_STEPS
 from ..gap.predictor import RESTART, RESTARTS, SEGMENT
 from ..gap.significance import EFFECT_SIGMA, LR_P, MIN_SHRINK
 from ..gap.prepare import SAMPLE_S, prepare
 from ..model import G_SI
+from .diagnosis_text import ranking_table, verdict_line
 from ._options import (add_data_option, add_flight_option, add_load_options, add_quiet_option, add_sim_options,
                        finding_line, outputs, read_flight, sim_options)
 
@@ -201,13 +202,14 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     if unknown or not chosen:
         raise SystemExit(f"jaxheli diagnose: --effects: unknown effect(s) {unknown}; candidates are {fx.ALL}")
     theta = resolve_params(args.model)
-    train = prepare(read_flight(args.data, args), correct_data=args.correct, trim_samples=args.train_trim,
-                    lowpass_hz=args.train_lowpass, dt=args.train_dt)
-    validate = prepare(read_flight(args.validate, args), correct_data=args.correct)
+    train = prepare(read_flight(args.data, args), trim_samples=args.train_trim, lowpass_hz=args.train_lowpass,
+                    dt=args.train_dt)
+    validate = read_flight(args.validate, args)
     diagnosis = diagnose(
-        args.model, train, validate, outputs=outputs(args.outputs), effects=chosen, segment=args.segment,
-        restart=args.restart, top=args.top, g=args.g, max_steps=args.max_steps, min_shrink=args.min_shrink,
-        track=args.track, joint=not args.frozen_base, dt=args.dt or None,
+        theta, train, validate, name=args.model, outputs=outputs(args.outputs), effects=chosen,
+        segment=args.segment, restart=args.restart, top=args.top, g=args.g, max_steps=args.max_steps,
+        min_shrink=args.min_shrink, track=args.track, joint=not args.frozen_base, dt=args.dt or None,
+        correct=args.correct,
     )
     found = diagnosis.attribution
     steps = " and ".join(dict.fromkeys(f"{f.dt:.4g}" for f in diagnosis.flights.values()))
@@ -216,7 +218,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
           f"{found.track:g}; channels {','.join(diagnosis.outputs)})")
     for line in ranking_table(diagnosis):
         print(line)
-    print(f"verdict: {found.verdict}")
+    print(f"verdict: {verdict_line(found.verdict)}")
     if found.final is not None:
         print(f"its size re-identified with the base model on both flights: {found.final.fitted.summary}")
     for path in write_diagnosis(diagnosis, theta, validate, args.out):

@@ -17,4 +17,5 @@ from .ranking import combine_effects as combine_effects, diagnose_effects as dia
 from .ranking import predictor_pair as predictor_pair, rank_effects as rank_effects
 from .records import Attribution as Attribution, Diagnosis as Diagnosis, Entry as Entry, Final as Final
 from .records import Refit as Refit, Structure as Structure
+from .verdict import Verdict as Verdict
 from .structure import physical_box as physical_box, structure_hypothesis as structure_hypothesis

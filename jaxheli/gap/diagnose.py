@@ -1,5 +1,5 @@
-"""How far the gap shrinks: the whole diagnosis of a model on a training and a validation flight, its files
-and its ranking table (what ``jaxheli diagnose`` writes and prints).
+"""How far the gap shrinks: the whole diagnosis of a model on a training and a validation flight, and its files
+(what ``jaxheli diagnose`` writes; the command line words it on the console).
 
 Composes the pieces of :mod:`jaxheli.gap`: the data-consistency findings of both flights
 (:func:`~jaxheli.gap.consistency.check`), where the base model misses the validation flight
@@ -32,7 +32,7 @@ from ..bounds import Bounds
 from ..model import G_SI, MEASURABLE
 from ..effects import registry as fx
 from ..effects.plant import no_effect
-from .consistency import check
+from .consistency import check, correct as fix
 from .compare import frequency_comparison, localise_prediction
 from .localisation_record import Localisation
 from .fit_effect import MAX_STEPS, effect_eta as effect_eta
@@ -81,6 +81,7 @@ def diagnose(
     train: FlightData,
     validate: FlightData,
     *,
+    name: str | None = None,
     outputs: Sequence[str] | None = None,
     effects: Sequence[str] = fx.ALL,
     segment: float = SEGMENT,
@@ -94,8 +95,10 @@ def diagnose(
     max_steps: int = MAX_STEPS,
     min_shrink: float = MIN_SHRINK,
     dt: float | None = SAMPLE_S,
+    correct: bool = False,
 ) -> Diagnosis:
-    """The diagnosis of ``model`` (anything :func:`jaxheli.resolve_params` takes).
+    """The diagnosis of ``model`` (anything :func:`jaxheli.resolve_params` takes; the record calls it ``name``,
+    default the file or set name ``model`` is, else ``"given parameters"``).
 
     Effects are fitted on ``train`` jointly with the base parameters in ``bounds`` (``joint=False``: the base
     model held fixed) and scored on ``validate`` (:func:`~jaxheli.gap.ranking.diagnose_effects`, with ``top``,
@@ -104,11 +107,52 @@ def diagnose(
     tuned on ``train``). ``outputs`` default to :func:`shared_outputs`; ``localise_train`` localises the training
     flight's gap too. A flight sampled faster than ``dt`` (s; default the thresholds' step, that of the flights they
     were set on) is low-passed and resampled to it first (:func:`~jaxheli.gap.prepare.at_step`; ``None``: each at
-    its own step).
+    its own step). Each flight is checked for consistency once (:func:`~jaxheli.gap.consistency.check`), and with
+    ``correct`` its significant findings are applied before any fit (:func:`~jaxheli.gap.consistency.correct`).
     """
     smooth = smooths(restart, "diagnose")
     theta = resolve_params(model)
+    if name is None:
+        name = str(model) if isinstance(model, (str, Path)) else "given parameters"
     names = tuple(outputs) if outputs is not None else shared_outputs(train, validate)
+    _check_outputs(names, train, validate)
+    flights = {"train": at_step(train.select(names), dt), "validate": at_step(validate.select(names), dt)}
+    with stage("consistency check of both flights" + (", significant findings corrected" if correct else "")) as now:
+        findings = {role: check(flight) for role, flight in flights.items()}
+        if correct:
+            flights = {role: at_step(fix(flight, findings[role]), dt) for role, flight in flights.items()}
+        consistency = tuple({**f.to_json(), "flight": role} for role, found in findings.items() for f in found)
+        now.outcome = f"{sum(f['significant'] for f in consistency)} significant of {len(consistency)} findings"
+    train, validate = flights["train"], flights["validate"]
+    problems = [make_problem(f, outputs=names, g=g) for f in (train, validate)]
+    with stage("predictors of both flights" + (", the restart filter tuned on the training flight"
+                                               if track is None else "")) as now:
+        preds = predictor_pair(theta, *problems, segment=segment, g=g, track=track, smooth=smooth)
+        now.outcome = f"restart filter level {float(preds[0].track):g}"
+    attribution = diagnose_effects(theta, *preds, list(effects), top=top, joint=joint, bounds=bounds,
+                                   max_steps=max_steps, min_shrink=min_shrink)
+    with stage("gaps and localisation of the base model" + (" on both flights" if localise_train else "")):
+        gaps = [_gap(gap, names) for gap in np.asarray(nmse(predictions(theta, preds[1], attribution.shown),
+                                                              validate.outputs))]
+        return Diagnosis(
+            model=name,
+            flights={role: _flight_summary(f) for role, f in (("train", train), ("validate", validate))},
+            outputs=names,
+            segment_s=segment,
+            restart=restart,
+            consistency=consistency,
+            localisation=_localise_base(theta, validate, preds[1], segment, restart),
+            attribution=attribution,
+            gap_before=gaps[0],
+            gap_best=gaps[1],
+            gap_combination=gaps[2] if len(gaps) > 2 else None,
+            localisation_train=_localise_base(theta, train, preds[0], segment, restart) if localise_train else None,
+            validated=validate,
+        )
+
+
+def _check_outputs(names: tuple[str, ...], train: FlightData, validate: FlightData) -> None:
+    """Errors for channels ``names`` a flight lacks, that are no model state the diagnosis uses, or are constant."""
     for role, flight in (("train", train), ("validate", validate)):
         missing = [c for c in names if c not in flight.output_names]
         if missing:
@@ -122,35 +166,6 @@ def diagnose(
         if flat:
             raise ValueError(f"{flight.source} ({role} flight): output channel(s) {flat} are constant; leave "
                              f"them out of outputs")
-    train, validate = (at_step(f.select(names), dt) for f in (train, validate))
-    with stage("consistency check of both flights") as now:
-        consistency = tuple({**f.to_json(), "flight": role}
-                            for role, flight in (("train", train), ("validate", validate)) for f in check(flight))
-        now.outcome = f"{sum(f['significant'] for f in consistency)} significant of {len(consistency)} findings"
-    problems = [make_problem(f, outputs=names, g=g) for f in (train, validate)]
-    with stage("predictors of both flights" + (", the restart filter tuned on the training flight"
-                                               if track is None else "")) as now:
-        preds = predictor_pair(theta, *problems, segment=segment, g=g, track=track, smooth=smooth)
-        now.outcome = f"restart filter level {float(preds[0].track):g}"
-    attribution = diagnose_effects(theta, *preds, list(effects), top=top, joint=joint, bounds=bounds,
-                                   max_steps=max_steps, min_shrink=min_shrink)
-    with stage("gaps and localisation of the base model" + (" on both flights" if localise_train else "")):
-        gaps = [_gap(gap, names) for gap in np.asarray(nmse(predictions(theta, preds[1], attribution.shown),
-                                                              validate.outputs))]
-        return Diagnosis(
-            model=str(model) if isinstance(model, (str, Path)) else "given parameters",
-            flights={role: _flight_summary(f) for role, f in (("train", train), ("validate", validate))},
-            outputs=names,
-            segment_s=segment,
-            restart=restart,
-            consistency=consistency,
-            localisation=_localise_base(theta, validate, preds[1], segment, restart),
-            attribution=attribution,
-            gap_before=gaps[0],
-            gap_best=gaps[1],
-            gap_combination=gaps[2] if len(gaps) > 2 else None,
-            localisation_train=_localise_base(theta, train, preds[0], segment, restart) if localise_train else None,
-        )
 
 
 def _localise_base(
@@ -182,15 +197,15 @@ def write_diagnosis(
     diagnosis: Diagnosis, theta: Float[np.ndarray, "40"], validate: FlightData, out: str | Path,
 ) -> list[Path]:
     """Write ``diagnosis.json`` (:meth:`~jaxheli.gap.records.Diagnosis.to_json`), ``consistency.json`` and the PNGs
-    (residual bands, lag correlation, frequency response, before/after time histories on ``validate``) into
-    ``out``."""
+    (residual bands, lag correlation, frequency response, before/after time histories on the validation flight as
+    diagnosed, ``diagnosis.validated``, or on ``validate`` for a diagnosis read back from JSON) into ``out``."""
     from ..plots import plot_frequency_response
-    from .plots import plot_lag_correlation, plot_residual_bands
+    from .plots import plot_before_after, plot_lag_correlation, plot_residual_bands
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     names = diagnosis.outputs
-    flight = validate.select(names)
+    flight = diagnosis.validated if diagnosis.validated is not None else validate.select(names)
     content = diagnosis.to_json()
     local = diagnosis.localisation
     g = local.simulation["g"]
@@ -210,80 +225,3 @@ def write_diagnosis(
             plot_before_after(flight, predictions(theta, pred, shown),
                               ["base model"] + [f"+ {e.effect}" for e in shown], out / "before_after.png"),
         ]
-
-
-def plot_before_after(
-    flight: FlightData, predicted: Float[np.ndarray, "C N k"], labels: Sequence[str], path: str | Path,
-) -> Path:
-    """Time histories per channel: the flight's measurement and each prediction ``predicted[c]`` (``labels[c]``)."""
-    from ..plots import _save, _subplots
-
-    predicted = np.asarray(predicted)
-    if predicted.shape[1:] != flight.outputs.shape or predicted.shape[0] != len(labels):
-        raise ValueError(f"plot_before_after: predictions {predicted.shape} must be [{len(labels)}, "
-                         f"{', '.join(map(str, flight.outputs.shape))}] for {flight.source}")
-    k = len(flight.output_names)
-    fig, axes = _subplots(k, 1, figsize=(10, 1.6 * k + 0.8), sharex=True, squeeze=False)
-    t = flight.time - flight.time[0]
-    units = flight.units
-    for c, (ax, name) in enumerate(zip(axes[:, 0], flight.output_names)):
-        ax.plot(t, flight.outputs[:, c], color="black", lw=1.0, label="measured")
-        for i, label in enumerate(labels):
-            ax.plot(t, predicted[i, :, c], lw=0.9, color=f"C{i}", label=label)
-        ax.set_ylabel(f"{name} [{units.get(name, '-')}]", fontsize=8)
-        ax.grid(alpha=0.3)
-    axes[0, 0].legend(fontsize=7, ncol=len(labels) + 1, loc="upper right")
-    axes[-1, 0].set_xlabel("time [s]")
-    fig.suptitle(f"{flight.source}: before and after the effect (validation flight)", fontsize=10)
-    fig.tight_layout()
-    return _save(fig, path)
-
-
-def ranking_table(diagnosis: Diagnosis) -> list[str]:
-    """The base model's gap on the validation flight (nmse, total and per channel), then a table of shrinks of
-    that gap (%): the base model re-fitted alone when the diagnosis re-identified jointly (its shrink of the given
-    base; ``U``: under-fitted), its re-fit in the physical ranges (shrink of the better model without an effect;
-    ``S``: significant, the effects below are then ranked beyond it), and the ranked effects (total with its
-    standard error and per channel; ``*`` significant, ``=`` tied with another), and those re-checked beyond the
-    structure (:func:`~jaxheli.gap.ranking.staged`)."""
-    names, before, found = diagnosis.outputs, diagnosis.gap_before, diagnosis.attribution
-    lines = [f"  base model's validation gap (nmse): total {before.total:.3g}; "
-             + ", ".join(f"{n} {before.channel[n]:.3g}" for n in names),
-             f"  {'shrink of that gap':<22}{'%':>9}{'+-':>6}  {'sig':<4}" + "".join(f"{n:>8}" for n in names)
-             + "  fitted"]
-    refit, structure = found.base_refit, found.structure
-    if refit is not None:
-        lines.append(_row("(base re-fitted)", refit.shrink_pct, refit.shrink_se_pct, "U" if refit.under_fitted else "",
-                          [_pct(before.channel[n], refit.gap_by_channel[n]) for n in names],
-                          "effects below: shrink beyond this"))
-    if structure is not None:
-        lines.append(_row("(base, physical box)", structure.shrink_pct, structure.shrink_se_pct,
-                          "S" if structure.significant else "",
-                          [_pct(before.channel[n], structure.gap_by_channel[n]) for n in names], structure.summary))
-    for e in (*found.ranking, *found.shown[1:]):
-        mark = ("=" if e.tied_with else "*") if e.significant else ""
-        lines.append(_row(e.effect, e.shrink_pct, e.shrink_se_pct, mark, [e.shrink_by_channel[n] for n in names],
-                          e.fitted.summary))
-    if found.recheck:
-        lines.append("  re-checked beyond the structure, in the physical ranges (significant above only if here too):")
-        lines += [_row(e.effect, e.shrink_pct, e.shrink_se_pct, "*" if e.significant else "",
-                       [e.shrink_by_channel[n] for n in names], e.fitted.summary) for e in found.recheck]
-    return lines
-
-
-def _row(label: str, shrink: float, se: float, mark: str, channels: Sequence[float], note: str) -> str:
-    """A line of :func:`ranking_table`."""
-    return (f"  {label:<22}{_num(shrink, '.1f'):>9}{_num(se, '.1f'):>6}  {mark:<4}"
-            + "".join(f"{_num(c, '.1f'):>8}" for c in channels) + f"  {note}")
-
-
-def _pct(before: float, after: float) -> float:
-    return float("nan") if before == 0 else 100.0 * (before - after) / before
-
-
-def _num(value: float, fmt: str) -> str:
-    """``value`` formatted, in two significant digits from 1e5 on (a diverged candidate's shrink of -1e160 %), or
-    ``-`` where it is not finite (``null`` in ``diagnosis.json``)."""
-    if not np.isfinite(value):
-        return "-"
-    return format(value, fmt) if abs(value) < 1e5 else format(value, ".2g")

@@ -3,16 +3,10 @@
 The ranking decides *which* effect on held-out data: every candidate is fitted on the training flight and scored
 on the validation flight (:mod:`jaxheli.gap.ranking`). Its size from the training flight alone falls short where
 the base model, identified on the same contaminated flight, kept part of the effect and the flight cannot tell
-the two apart: on the blind check's identifiable trials (seeds 0-19), the training fits and the oracle's alike
-gave drags of -2.9 to -4.2 1/m for true -4.8 to -5.8, sensor misalignments of -0.06 and -0.13 rad for -0.12 and
--0.18. Once the effect is named, the validation flight has done its part, and its other excitation (larger
+the two apart. Once the effect is named, the validation flight has done its part, and its other excitation (larger
 sticks, other manoeuvres) tells the effect from the base parameters it trades with, a quadratic drag from the
 linear damping by amplitude: the effect and the base model are re-fitted on both flights at once, from the
-training fit. Re-fitted so, those drags came to -3.7 to -4.6 and the misalignments to -0.11 and -0.16. On the
-unscored seeds 100-119, over the trials whose effect was named, the median magnitude error fell from 19 to 15 %
-(lags, 5 of 6 closer), from 42 to 31 % (drags, 2 of 3) and from 8 to 3 % (a misalignment). It rose for the gust
-of process noise, whose size the larger manoeuvres' model error inflates (18 to 35 %, 2 of 4 closer), and for
-the rotor coupling (36 to 39 %). Nothing in the ranking or the verdict depends on this fit.
+training fit. Nothing in the ranking or the verdict depends on this fit.
 """
 
 from __future__ import annotations
@@ -29,7 +23,7 @@ from ..effects import registry as fx
 from ..effects.plant import no_effect
 from .fit_effect import effect_eta, fit_candidates, fitted_nuisance, with_reference
 from .predictor import Predictor
-from .records import Entry, Final
+from .candidate_records import Entry, Final
 
 
 class Stacked(eqx.Module):

@@ -1,11 +1,9 @@
 """Fit candidate effects: one compiled Levenberg-Marquardt solve (the engines' driver,
 :func:`jaxheli.optim.boxed_lm.boxed_least_squares`) run for each candidate row in turn. Not ``vmap``: vmapped, the
-solves, each a loop over forward-mode scans, deadlocked XLA CPU's runtime with every thread waiting (the nine fits of
-``tests/test_diagnose.py``'s clean-flight diagnosis in a plain process, 23 fits under the test suite's XLA flags). Not
-``lax.map`` either: inside the map's loop a step of the reference's solve took 57 ms against 43 ms run alone (20-s,
-20-Hz flight, one CPU core), and the mapped program compiles anew for every row count. The solve compiles with
-:data:`jaxheli._xla.QUICK_COMPILE`: it runs a few times per process, so compiling is most of its cost (blind trial on
-a 2-core CPU: the reference's 60-step fit compiled in 14 s instead of 77 s).
+solves, each a loop over forward-mode scans, can deadlock XLA CPU's runtime with every thread waiting. Not
+``lax.map`` either: a step inside the map's loop is slower than run alone, and the mapped program compiles anew for
+every row count. The solve compiles with :data:`jaxheli._xla.QUICK_COMPILE`: it runs a few times per process, so
+compiling is most of its cost.
 
 Every candidate frees ``K`` entries of ``eta`` (``index[C, K]``, padded with a dummy slot), each in its
 physical box (:func:`jaxheli.effects.registry.box`), started at the effect's start values. With the base
@@ -200,8 +198,8 @@ def _colour_factor(res: Float[Array, "N k"]) -> Float[Array, ""]:
 
 
 SCORE_WIDTH = 8
-"""Pairs :func:`score` evaluates in one call. A diagnosis scores 34, 8 and 1 pairs at its stages; compiled for each
-count, the program took about 3 s each time (60-s, 20-Hz flights), against 3-47 ms to run."""
+"""Pairs :func:`score` evaluates in one call: one compiled program for the diagnosis's stages, which score different
+numbers of pairs."""
 
 
 def score(

@@ -19,8 +19,7 @@ from ..effects.plant import GUST_STATES, Plant
 
 _DOUBLINGS = 30
 """Doublings of the Riccati solve (``2^30`` filter steps): the bias states' modes, held by their floor alone, sit
-``1e-6`` inside the unit circle; after 24 doublings their covariance was still 4e-4 (relative) from scipy's DARE, after
-30 it is within 1e-9."""
+``1e-6`` inside the unit circle; 30 doublings bring their covariance within 1e-9 (relative) of scipy's DARE."""
 _FLOOR = 1e-12
 """Process-noise variance floor on every state: keeps unstable modes reachable, so the doubling converges."""
 _BIAS_FLOOR = 1e-12

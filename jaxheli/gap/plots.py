@@ -1,12 +1,15 @@
-"""PNG plots of the gap: residual by band and input-residual lag correlation (flight against model Bode plots:
-:func:`jaxheli.plots.plot_frequency_response`)."""
+"""PNG plots of the gap: residual by band, input-residual lag correlation and the predictions before and after an
+effect (flight against model Bode plots: :func:`jaxheli.plots.plot_frequency_response`)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from .._types import Float
+from ..data.flight import FlightData
 from ..plots import _save, _subplots
 from .localisation_record import Localisation
 
@@ -72,5 +75,30 @@ def plot_lag_correlation(localisation: Localisation, path: str | Path, title: st
     for ax in axes[-1]:
         ax.set_xlabel("lag [s]")
     fig.suptitle(title or "input-residual cross-correlation (grey: not significant)", fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_before_after(
+    flight: FlightData, predicted: Float[np.ndarray, "C N k"], labels: Sequence[str], path: str | Path,
+) -> Path:
+    """Time histories per channel: the flight's measurement and each prediction ``predicted[c]`` (``labels[c]``)."""
+    predicted = np.asarray(predicted)
+    if predicted.shape[1:] != flight.outputs.shape or predicted.shape[0] != len(labels):
+        raise ValueError(f"plot_before_after: predictions {predicted.shape} must be [{len(labels)}, "
+                         f"{', '.join(map(str, flight.outputs.shape))}] for {flight.source}")
+    k = len(flight.output_names)
+    fig, axes = _subplots(k, 1, figsize=(10, 1.6 * k + 0.8), sharex=True, squeeze=False)
+    t = flight.time - flight.time[0]
+    units = flight.units
+    for c, (ax, name) in enumerate(zip(axes[:, 0], flight.output_names)):
+        ax.plot(t, flight.outputs[:, c], color="black", lw=1.0, label="measured")
+        for i, label in enumerate(labels):
+            ax.plot(t, predicted[i, :, c], lw=0.9, color=f"C{i}", label=label)
+        ax.set_ylabel(f"{name} [{units.get(name, '-')}]", fontsize=8)
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=7, ncol=len(labels) + 1, loc="upper right")
+    axes[-1, 0].set_xlabel("time [s]")
+    fig.suptitle(f"{flight.source}: before and after the effect (validation flight)", fontsize=10)
     fig.tight_layout()
     return _save(fig, path)

@@ -4,8 +4,7 @@ Every candidate (and the base model) is scored the same way: the augmented plant
 recorded sticks and restarted every ``segment`` seconds from the state a steady-state Kalman filter of the
 same candidate plant estimates from the sensor readings up to the restart (measurements passed back
 through the candidate's sensor model, :meth:`Plant.unmeasure`). Restarting from raw readings instead
-injects their noise into every segment: on the blind check's flights that propagated noise was half of
-the truth model's residual and made fitted delays and rotor time constants wander by a factor 2-3. The
+injects their noise into every segment, where it makes fitted delays and rotor time constants wander. The
 filter follows the measurements with process noise ``track`` times the measurement noise per sample;
 the diagnosis tunes ``track`` on the training flight (:func:`tune_track`): low when the model is close,
 high when it is far from the flight (identified models of real flights), so restarts stay near the data.
@@ -161,7 +160,7 @@ def noise_variance(outputs: Float[np.ndarray, "N k"]) -> Float[np.ndarray, "k"]:
 
 
 def make_predictor(
-    data: FlightData | Problem, *, segment: float = 2.0, g: float = G_SI, max_delay: float = 0.3,
+    data: FlightData | Problem, *, segment: float, g: float = G_SI, max_delay: float = 0.3,
     window: float = 0.5, track: float = TRACK, smooth: bool = False,
 ) -> Predictor:
     """Predictor of a record restarting every ``segment`` s from the filtered state (process noise ``track``,
@@ -182,7 +181,7 @@ def make_predictor(
     seg = int(round(segment / dt))
     if seg < 2 or seg >= n:
         raise ValueError(f"{source}: segment {segment:g} s must span 2 samples to the record length "
-                         f"({n} samples of {dt:g} s): choose a shorter one (--segment)")
+                         f"({n} samples of {dt:g} s): choose a shorter segment")
     if not track >= 0:
         raise ValueError(f"{source}: restart filter track {track} must be >= 0")
     win = int(round(window / dt))

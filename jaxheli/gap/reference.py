@@ -1,37 +1,36 @@
-"""The yardstick every candidate effect is credited against: the base model re-fitted alone (the reference),
-challenged by the candidates' base parameters, and how far it shrinks the given base's gap.
+"""The yardstick every candidate effect is credited against: the base model re-fitted alone (the reference), and how
+far it shrinks the given base's gap.
 
 Fitting an effect on top of a frozen, under-fitted base pays the effect for whatever misfit its extra freedom soaks
 up; the reference absorbs that first. The reference's own held-out shrink of the given base is reported
 (:func:`base_refit`): beyond the noise, the base model is under-fitted and the verdict says so before any effect;
 while the re-fitted base is still converging (:data:`SETTLED_PCT`), no effect is credited at all (:func:`withhold`).
 A joint fit can also carry the base parameters into a better basin; the reference is then re-fitted from the
-candidates' base parameters (:func:`challenge`), so that an effect is not paid for the escape."""
+candidates' base parameters (:func:`~jaxheli.gap.candidates.challenge`), so that an effect is not paid for the
+escape."""
 
 from __future__ import annotations
 
 import dataclasses
 from typing import NamedTuple
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._progress import note, stage
+from .._progress import note
 from .._types import Array, ArrayLike, Float
 from ..bounds import Bounds
 from ..effects.plant import no_effect
-from .fit_effect import EffectRows, EffectFit, embed, fit_candidates, fitted_nuisance, score
+from .fit_effect import EffectRows, EffectFit, fit_candidates, fitted_nuisance
 from .predictor import Predictor
-from .records import Entry, Refit
+from .candidate_records import Entry, Refit
 from .thresholds import THRESHOLDS
 from .significance import SIG_SIGMA, HeldOut, paired_se
 
 SETTLED_PCT = THRESHOLDS.settled_pct
 """Training-RSS decrease (%) of the reference over the candidates' step budget below which it counts as
-settled. A reference still falling (3 % on a base identified with 3 PEM steps, against 0.1 % on the truth
-model with a delay withheld) is no yardstick: every candidate's extra freedom buys more of the same descent,
-so no effect is credited (:func:`withhold`)."""
+settled. A reference still falling is no yardstick: every candidate's extra freedom buys more of the same
+descent, so no effect is credited (:func:`withhold`)."""
 
 REFERENCE_STEPS = 4
 """The base model re-fitted alone gets rounds of this many times the candidates' step budget before they start
@@ -42,21 +41,15 @@ REFERENCE_ROUNDS = 3
 """Most rounds of the reference's own fit; it stops early once a round lowers its training RSS by less than
 :data:`SETTLED_PCT` or the solver converges."""
 
-CHALLENGERS = 3
-"""Most candidates whose base parameters the reference is re-fitted from (:func:`challenge`)."""
-
-START_TIE_PCT = THRESHOLDS.start_tie_pct
-"""Training-RSS difference (%) within which two starts of one candidate fit equally well (:func:`best_rows`)."""
-
 
 class Scored(NamedTuple):
     """A batch of candidates fitted on the training flight and scored on the validation flight
-    (:func:`~jaxheli.gap.ranking.fit_and_score`).
+    (:func:`~jaxheli.gap.candidates.fit_and_score`).
 
     Row 0 of ``fit`` and of ``rows`` is the reference, row ``c + 1`` the candidate ``c``; ``given`` scores the given
     base model; ``rss_start`` is the reference's training RSS where the candidates started (``None``: frozen base);
-    ``moved``: a challenger's base parameters replaced the reference (:func:`challenge`); ``followed``: how many
-    candidate rows then fitted better from its optimum (:func:`follow`).
+    ``moved``: a challenger's base parameters replaced the reference (:func:`~jaxheli.gap.candidates.challenge`);
+    ``followed``: how many candidate rows then fitted better from its optimum (:func:`~jaxheli.gap.candidates.follow`).
     """
 
     fit: EffectFit
@@ -100,91 +93,6 @@ def carry_reference(cand: EffectRows, z: Float[ArrayLike, "K"], row: int = 0) ->
     for j in range(cand.index.shape[1]):
         start = jnp.where(cand.index == cand.index[row, j], jnp.clip(z[j], cand.lower, cand.upper), start)
     return dataclasses.replace(cand, start=start)
-
-
-def challenge(
-    train: Predictor, validate: Predictor, cand: EffectRows, scored: Scored, steps: int, box: Bounds, count: int,
-) -> Scored:
-    """The reference challenged by the candidates it would credit: the base model re-fitted alone (``steps`` LM
-    steps) from the base parameters (and nuisance values) of each of the up to :data:`CHALLENGERS` of the first
-    ``count`` candidates that shrink the held-out gap most (any positive shrink: below the noise floor too, their
-    base parameters may have found the better basin). A joint fit can carry the base parameters into a better basin,
-    and an effect is not paid for that: the re-fit of least training RSS, if below the reference's, replaces it (row
-    0 of ``fit`` and ``rows``; ``rss_start`` moves by the same gain, so :func:`base_refit`'s progress stays the
-    reference's own)."""
-    fit = scored.fit
-    total = np.mean(scored.rows.gap, axis=1)
-    shrink = 100.0 * (total[0] - total[1:count + 1]) / total[0]
-    order = [c + 1 for c in np.argsort(-shrink) if shrink[c] > 0][:CHALLENGERS]
-    base = jnp.asarray(no_effect(train.outputs))
-    reference = jax.tree.map(lambda a: a[:1], cand)
-    best = None
-    for n, c in enumerate(order):
-        with stage(f"challenge {n + 1} of {len(order)}: the reference re-fitted from row {c}'s base parameters") as now:
-            start = carry_reference(dataclasses.replace(cand, start=fit.z), fit.z[c], row=c).start[:1]
-            trial = refit_alone(train, fit.theta[c], dataclasses.replace(reference, start=start), steps, box)
-            to_beat = float(fit.rss[0] if best is None else best.rss[0])
-            if float(trial.rss[0]) < to_beat:
-                best = trial
-            now.outcome = (f"{'better' if best is trial else 'not better'}: training RSS {float(trial.rss[0]):.6g}, "
-                           f"the reference's {to_beat:.6g}")
-    if best is None:
-        return scored
-    gain = float(fit.rss[0] - best.rss[0])
-    g, e = (np.asarray(a) for a in score(validate, best.theta, embed(base, reference.index[0], best.z[0])[None]))
-    gap, energy = scored.rows.gap.copy(), scored.rows.energy.copy()
-    gap[0], energy[0] = g[0], e[0]
-    return Scored(jax.tree.map(lambda a, b: a.at[0].set(b[0]), fit, best), scored.given, HeldOut(gap, energy),
-                  scored.rss_start - gain, moved=True)
-
-
-def follow(train: Predictor, validate: Predictor, cand: EffectRows, after: Scored, steps: int, box: Bounds) -> Scored:
-    """``after`` (the reference challenged, :func:`challenge`; its candidate rows as first fitted) with the candidates
-    given the basin the reference moved to: when the challenge replaced the reference, every candidate row of ``cand``
-    is fitted again (``steps`` LM steps) from the new reference's base parameters and nuisance values, its effect values
-    started where its first fit ended, and keeps whichever of its two fits has the lower training RSS. A yardstick that
-    escapes into a better basin while the candidates stay in the old one takes from every candidate the credit it had
-    for its effect, and which candidate moved it decides the others' verdicts. The challenge replaced the reference in
-    all 52 trials of design seeds 80-83 (independent simulator, every kind, controls 80-87); following it, the diagnosis
-    was right on 22 of their 30 detectable trials against 19 (two Dryden and a logger delay gained, none lost), controls
-    clean either way; on held-out seeds 5140-5149 it changed no verdict (the same 50 of 71, docs/blind_history.md)."""
-    if not after.moved or cand.index.shape[0] < 2:
-        return after
-    base = jnp.asarray(no_effect(train.outputs))
-    ref = jax.tree.map(lambda a: a[0], after.fit)
-    rows = jax.tree.map(lambda a: a[1:], carry_reference(dataclasses.replace(cand, start=after.fit.z), ref.z))
-    with stage(f"the {rows.index.shape[0]} candidate rows fitted again from the challenged reference's optimum "
-               f"({steps} LM steps each)") as now:
-        again = fit_candidates(train, ref.theta, base, rows, steps, box)
-        better = np.asarray(again.rss) < np.asarray(after.fit.rss[1:])
-        now.outcome = f"{int(np.sum(better))} of {better.size} rows fitted better"
-    if not np.any(better):
-        return after
-    keep = jnp.asarray(np.r_[False, better])
-    padded = jax.tree.map(lambda a, b: jnp.concatenate([a[:1], b]), after.fit, again)
-    fit = jax.tree.map(lambda new, old: jnp.where(keep.reshape((-1,) + (1,) * (old.ndim - 1)), new, old), padded,
-                       after.fit)
-    etas = jax.vmap(lambda i, z: embed(base, i, z))(rows.index, again.z)
-    g, e = (np.asarray(a) for a in score(validate, again.theta, etas))
-    gap, energy = after.rows.gap.copy(), after.rows.energy.copy()
-    gap[1:][better], energy[1:][better] = g[better], e[better]
-    return after._replace(fit=fit, rows=HeldOut(gap, energy), followed=int(np.sum(better)))
-
-
-def best_rows(rss: Float[np.ndarray, "R"], owner: np.ndarray, size: Float[np.ndarray, "R"] | None = None) -> np.ndarray:
-    """Rows of a batched fit to keep: the reference (row 0), then for each candidate ``c`` the row among those
-    ``owner`` gives it (``owner[r - 1]``, rows after the reference) of least training RSS ``rss``; with
-    ``size`` (each row's fitted distance from no effect), the smallest among the rows within
-    :data:`START_TIE_PCT` of that least RSS: starts that fit equally well are told apart by parsimony, not by
-    the noise in their RSS (a spurious 40 ms collective delay beside the real lon one)."""
-    rss, owner = np.asarray(rss)[1:], np.asarray(owner)
-    size = rss if size is None else np.asarray(size)[1:]
-    keep = [0]
-    for c in range(int(owner.max()) + 1):
-        rows = np.flatnonzero(owner == c)
-        near = rows[rss[rows] <= np.min(rss[rows]) * (1.0 + START_TIE_PCT / 100.0)]
-        keep.append(1 + int(near[np.argmin(size[near])]))
-    return np.array(keep)
 
 
 def base_refit(scored: Scored, outputs: tuple[str, ...], min_shrink: float) -> Refit | None:

@@ -16,7 +16,7 @@ Each entry carries that likelihood-ratio test (``lr``: ``n_eff ln(RSS_ref / RSS)
 degrees of freedom as effect parameters the fit resolved, and the AIC difference) and ``p_value``, a one-sided t-test
 over 0.5 s validation windows of the log ratio of reference to candidate residual energy, which is not part of the
 verdict: an effect that acts only at large inputs (saturation, drag) concentrates its gain in a few windows, and
-window tests then miss shrinks of 60-90 % that the blind check knows are real."""
+window tests then miss large shrinks of real effects."""
 
 from __future__ import annotations
 
@@ -30,29 +30,17 @@ from .._types import Float
 from ..effects import registry as fx
 from .fit_effect import EffectFit, fitted_nuisance
 from .thresholds import THRESHOLDS
-from .records import Entry, LRTest
+from .candidate_records import Entry, LRTest
 
 MIN_SHRINK = THRESHOLDS.min_shrink
-"""(Every value here is read from the thresholds file, :mod:`jaxheli.gap.thresholds`, which records the commit
-and seeds that set it.) Default noise floor (%): the smallest held-out shrink that can be significant. Calibrated on
-effect-free flights whose base model is identified the way a user's is (the blind check's calibration controls,
-never scored, :func:`~jaxheli.benchmark.blind.run_trial`): with every prediction restarted from its segment's own
-readings, no candidate on 40 independent-simulator controls shrank the held-out gap by more than 1.2 %, and of the
-floors 3, 5 and 10 % the 5 % floor named the most right effects on the calibration effect trials without naming
-more wrong ones (the filter restart's controls had reached 9.3 %, hence the earlier 10 %); the blind check calls an
-effect explainable from an oracle shrink of this floor."""
+"""(Every value here is read from the thresholds file, :mod:`jaxheli.gap.thresholds`, which records how it was
+set.) Default noise floor (% of the reference's validation gap): the smallest held-out shrink that can be
+significant; the blind check calls an effect explainable from an oracle shrink of this floor."""
 
 MIN_Z = THRESHOLDS.min_z
 """Smallest distance of a significant effect from no effect, in standard errors of its fitted size
 (:func:`~jaxheli.effects.registry.evidence`): a shrink bought by parameters indistinguishable from zero (a
-"2 +- 3 ms delay") is model error the fit absorbed, not the effect. On the blind check (seeds 0-19 of every kind,
-100-119 of the controls, biases, drags and saturations; credited against the :func:`yardstick`), of the candidates
-that passed every other test, 10 spurious ones stood below 1 standard error (an effect-free control's saturation
-at 0.01 among them) and 7 true ones (five saturations at 0.02-0.08, whose limit this linearisation hardly sees, a
-rotor coupling, a drag); between 1 and 2 stood six true effects (four biases, a drag, a saturation: 1.02-1.82) and
-one spurious drag (1.86, behind its trial's true bias), so the bound was 1. It is now 1.5, set on the independent
-simulator's calibration seeds 100-139 (``thresholds.json``): at 1 two of 40 controls named an effect at z 1.16 and
-1.30, and the right effects named first stood at 1.69 and above."""
+"2 +- 3 ms delay") is model error the fit absorbed, not the effect."""
 
 SIG_SIGMA = THRESHOLDS.sig_sigma
 """Standard errors (paired over validation windows) the base model's own re-fits must shrink the gap by (the
@@ -60,35 +48,26 @@ reference: under-fitted; the structure hypothesis): a one-sided 5 % test."""
 
 EFFECT_SIGMA = THRESHOLDS.effect_sigma
 """Standard errors (paired over validation windows) a candidate effect's shrink below :data:`LARGE_SHRINK` must
-stand above zero to be significant (one-sided 2.3 %). Set on calibration seeds 100-105 (independent simulator): with
-the re-check beyond the structure run only where the structure is significant
-(:func:`~jaxheli.gap.ranking.staged`), the 5 % test named a process noise on an effect-free flight (12.8 +- 7.7 %)."""
+stand above zero to be significant (one-sided 2.3 %)."""
 
 LARGE_SHRINK = THRESHOLDS.large_shrink
 """Held-out shrink (%) that is significant without the window test: an effect that acts only in large
 manoeuvres (saturation, a long delay) concentrates its shrink in their few windows, so its window standard
-error is large even when the effect is real (a 58 +- 29 % saturation, a 47 +- 29 % delay); effect-free
-flights, an under-fitted base model included, gave at most 9.4 % (``tests/test_diagnose.py``, the blind
-check's controls)."""
+error is large even when the effect is real."""
 
 HELD_OUT_SIGMA = THRESHOLDS.held_out_sigma
 """Standard errors (paired over validation windows) by which a candidate's held-out shrink must stand above zero to
 be evidence of its effect in place of its fitted size's distance from no effect (:data:`MIN_Z`): that distance is a
 Wald statistic, and where the size's influence saturates it says nothing. A gust's standard deviation, once the
-restart filter follows the wind, moves the predictions little either way: on Dryden turbulence from the independent
-simulator a process noise shrank the held-out gap 6.0 +- 1.5 % (calibration seed 141) and 21.2 +- 3.5 % (design
-seed 2) at z 0.36 and 0.41. Set on calibration seeds (``thresholds.json``)."""
+restart filter follows the wind, moves the predictions little either way."""
 
 LR_P = THRESHOLDS.lr_p
 """Largest p-value of a candidate's likelihood-ratio test on the training flight (:func:`lr_test`) that is evidence
 of its effect below the noise floor (:func:`lr_evident`), its held-out shrink confirmed by the window test. A
 small effect that a re-fitted base model nearly absorbs (a fast servo read as the flapping lag) explains the training
 flight clearly yet shrinks the validation gap by less than :data:`MIN_SHRINK`. Only for effects that leave the
-restart filter alone: on 72 earlier calibration and design controls the gust's and the bias walk's statistics
-reached 42 and 50 (2 and 21 degrees of freedom: fitting them whitens the residuals), the other candidates' at most
-21. Set on calibration seeds 186-191 and controls 100-139 (``thresholds.json``): 1e-4, 1e-6 and 1e-8 each named one
-more right effect than no route (a fast servo as a 2.3 % input delay) and nothing on the controls, whose smallest
-p-value, 4.8e-6, was not confirmed held out; the smallest value kept."""
+restart filter alone: fitting the gust or the bias walk whitens the residuals, so their statistics are large on
+effect-free flights too."""
 
 TIE_SIGMA = THRESHOLDS.tie_sigma
 """Standard errors (paired over validation windows) by which two candidates' shrinks must differ not to be a
@@ -186,9 +165,7 @@ def yardstick(given: HeldOut, rows: HeldOut) -> HeldOut:
     """``rows`` (row 0 the reference, then the candidates; :func:`~jaxheli.gap.ranking.fit_and_score`) with the
     reference replaced by the ``given`` base when that predicts the validation flight better: candidates are
     credited only beyond the better of the two models without an effect. A re-fit of the base alone can over-fit
-    the training flight (30 of the blind check's 180 trials on seeds 0-19 predicted the validation flight worse
-    after it, up to 40 times the given base's gap); against it, any candidate that merely stays near the given base
-    is credited."""
+    the training flight; against it, any candidate that merely stays near the given base is credited."""
     if float(np.mean(given.gap)) >= float(np.mean(rows.gap[0])):
         return rows
     gap, energy = np.array(rows.gap), np.array(rows.energy)

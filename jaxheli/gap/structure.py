@@ -22,7 +22,7 @@ from ..effects.plant import no_effect
 from ..model import PARAM_NAMES, WIDE_LOWER, WIDE_UPPER
 from .fit_effect import EffectRows, embed, fitted_nuisance, score
 from .predictor import Predictor
-from .records import Structure
+from .candidate_records import Structure
 from .reference import REFERENCE_STEPS, Scored, refit_alone
 from .significance import SIG_SIGMA, HeldOut, paired_se
 from .thresholds import THRESHOLDS

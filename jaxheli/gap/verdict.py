@@ -1,0 +1,119 @@
+"""What the diagnosis found, as a record: the base model under-fitted, its structure named, the effect named (with
+its shrink, size and standard errors), or nothing significant; and that record in a sentence.
+
+The verdict is a pure function of the attribution's ranking, the base re-fitted alone, the structure hypothesis and
+the re-check beyond it (:func:`find`). The sentence here (:func:`sentence`) is the one ``diagnosis.json`` holds; it
+names no command-line option: the command line adds its own advice (``jaxheli.cli``)."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the rules read the records' fields only, so records.py can import this module
+    from .candidate_records import Entry, Refit, Structure
+
+
+@dataclasses.dataclass(frozen=True)
+class Verdict:
+    """What the diagnosis found (:func:`find`).
+
+    Attributes:
+        under_fitted: the base model re-fitted alone (:class:`~jaxheli.gap.candidate_records.Refit`) when it names
+            the given base under-fitted: its held-out shrink passed the noise, or it is still converging (``settled``
+            false: then nothing else is judged and ``structure`` and ``effect`` are ``None``); ``None`` otherwise.
+        structure: the base model's structure, named before any effect: significant, and no significant effect
+            shrinks the validation gap as far (:func:`structure_leads`); ``None`` otherwise.
+        effect: the best significant effect's ranking entry (its shrink, standard error and fitted size), its entry
+            of the re-check beyond the structure when the structure is named; ``None``: no significant effect.
+        tied_with: the significant effects within the named effect's noise.
+        outshrinks: the significant structure the named effect shrinks the gap further than (:func:`explains_more`:
+            the effect is then not the structure's stand-in); ``None`` otherwise.
+    """
+
+    under_fitted: Refit | None = None
+    structure: Structure | None = None
+    effect: Entry | None = None
+    tied_with: tuple[str, ...] = ()
+    outshrinks: Structure | None = None
+
+    @property
+    def settled(self) -> bool:
+        """Whether effects were judged at all: not when the re-fitted base is still converging."""
+        return self.under_fitted is None or self.under_fitted.settled
+
+    def __str__(self) -> str:
+        return sentence(self)
+
+
+def explains_more(entry: Entry, structure: Structure | None) -> bool:
+    """``entry``, ranked in the box, shrinks the validation gap at least as far as the significant ``structure``:
+    a few effect parameters predict the validation flight as well as the base model re-fitted with every pinned
+    parameter freed and its box widened, so the effect is not the structure's stand-in and is not judged again
+    beyond it."""
+    return bool(structure is not None and structure.significant and entry.shrink_pct >= structure.shrink_pct)
+
+
+def structure_leads(ranking: Sequence[Entry], structure: Structure | None) -> bool:
+    """The verdict names the base model's ``structure`` first: it is significant and no significant effect of
+    ``ranking`` shrinks the gap as far (:func:`explains_more`)."""
+    best = next((e for e in ranking if e.significant), None)
+    return bool(structure is not None and structure.significant
+                and not (best is not None and explains_more(best, structure)))
+
+
+def find(
+    ranking: Sequence[Entry], refit: Refit | None = None, structure: Structure | None = None,
+    recheck: Sequence[Entry] = (),
+) -> Verdict:
+    """The verdict of a ``ranking`` (best first), the base re-fitted alone (``refit``, ``None``: frozen base), the
+    base model's ``structure`` (:func:`~jaxheli.gap.structure.structure_hypothesis`) and the entries ranked again
+    beyond it (``recheck``, :func:`~jaxheli.gap.ranking.staged`)."""
+    if refit is not None and not refit.settled:
+        return Verdict(under_fitted=refit)
+    best = next((e for e in ranking if e.significant), None)
+    named = structure_leads(ranking, structure)
+    effect = best
+    if best is not None and named:
+        effect = next((r for r in recheck if r.effect == best.effect), best)
+    return Verdict(
+        under_fitted=refit if refit is not None and refit.under_fitted else None,
+        structure=structure if named else None,
+        effect=effect,
+        tied_with=best.tied_with if best is not None else (),
+        outshrinks=structure if best is not None and explains_more(best, structure) else None,
+    )
+
+
+def sentence(verdict: Verdict) -> str:
+    """``verdict`` in words: the named effect, or ``"no significant effect"``; before it the structure when named,
+    and first the under-fitted base (only that while it is still converging, with :func:`still_converging`)."""
+    refit = verdict.under_fitted
+    if refit is not None and not refit.settled:
+        return f"{under_fitted(refit)} and {still_converging(refit)}: no effect is attributed until it settles"
+    e = verdict.effect
+    if e is None:
+        text = "no significant effect"
+    else:
+        tie = f", tied with {' and '.join(verdict.tied_with)}" if verdict.tied_with else ""
+        text = f"{e.effect} ({e.fitted.summary}){tie}: gap shrinks {e.shrink_pct:.1f} % on the validation flight"
+        s = verdict.outshrinks
+        if s is not None:
+            text += f", more than the base model's structure ({s.summary}: {s.shrink_pct:.1f} +- {s.shrink_se_pct:.1f} %)"
+    s = verdict.structure
+    if s is not None:
+        text = (f"base model structure: {s.summary}: re-fitting it in the physical ranges shrinks the validation gap "
+                f"{s.shrink_pct:.1f} +- {s.shrink_se_pct:.1f} %; beyond that, {text}")
+    return text if refit is None else f"{under_fitted(refit)}; beyond that, {text}"
+
+
+def under_fitted(refit: Refit) -> str:
+    """``"base model under-fitted: re-fitting it alone shrinks the validation gap 12.0 +- 2.5 %"``."""
+    return (f"base model under-fitted: re-fitting it alone shrinks the validation gap {refit.shrink_pct:.1f} +- "
+            f"{refit.shrink_se_pct:.1f} %")
+
+
+def still_converging(refit: Refit) -> str:
+    """``"it is still converging (training RSS down 3.2 % over the last 60 steps)"``."""
+    return f"it is still converging (training RSS down {refit.progress_pct:.1f} % over the last {refit.steps} steps)"

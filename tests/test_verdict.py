@@ -1,0 +1,162 @@
+"""The verdict as a record: what each combination of ranking, base re-fit, structure and re-check finds, the
+command line's words for it (the same text the library returned before the record), and no text under
+``jaxheli/gap/`` that names a command-line option."""
+
+import ast
+import dataclasses
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from jaxheli.cli.diagnosis_text import verdict_line
+from jaxheli.gap.candidate_records import Refit, Structure
+from jaxheli.gap.fit_effect import EffectFit
+from jaxheli.gap.significance import HeldOut, shrink_entries
+from jaxheli.gap.verdict import Verdict, find, sentence
+from jaxheli.model import TABLE2
+from jaxheli.synth.piloted import DEFAULT_OUTPUTS
+
+OUT = DEFAULT_OUTPUTS
+GAP = Path(__file__).resolve().parents[1] / "jaxheli" / "gap"
+
+
+def _entries(shrinks=(0.6, 0.62, 0.97)):
+    """Ranking entries of a delay, a lag and a saturation behind a reference row (window energies ``shrinks`` of
+    the reference's), all three significant."""
+    k = 2 * len(OUT)
+    z = np.zeros((4, k))
+    z[1, :4], z[2, :4], z[3, :4] = [0.08, 0.0, 0.0, 0.0], [0.05, 0.0, 0.0, 0.0], [0.01, 0.0, 0.0, 0.0]
+    fit = EffectFit(z=z, stderr=np.full((4, k), 0.005), theta=np.tile(TABLE2, (4, 1)),
+                    rss=np.array([1.0, 0.6, 0.62, 0.99]), n_eff=np.full(4, 100.0), k_active=np.array([0, 4, 4, 4]), steps=np.full(4, 5),
+                    converged=np.full(4, True))
+    segs = np.ones((4, 40)) * np.r_[1.0, shrinks][:, None]
+    segs *= 1.0 + 0.02 * np.cos(np.arange(40)[None, :] * np.arange(1, 5)[:, None])  # windows differ
+    gaps = np.sum(segs, axis=1, keepdims=True) * np.ones(len(OUT)) / 40
+    return shrink_entries(["input_delay", "actuator_lag", "control_saturation"], OUT, fit, HeldOut(gaps, segs), 3.0)
+
+
+def _refit(under_fitted=True, settled=True):
+    return Refit(shrink_pct=12.0, shrink_se_pct=2.5, gap_base=0.4, gap=0.35, gap_by_channel=dict.fromkeys(OUT, 0.35),
+                 under_fitted=under_fitted, converged=False, progress_pct=3.25, settled=settled, steps=60,
+                 theta=np.asarray(TABLE2), nuisance={})
+
+
+def _structure(shrink, significant=True):
+    return Structure(shrink, 5.0, significant, 0.2, 0.2 * (1 - shrink / 100), dict.fromkeys(OUT, 0.1), {"Nw": 2.5},
+                     {"Xu": -3.0}, {"Xu": -1.0}, np.zeros(40), {})
+
+
+def _cases():
+    """name -> (ranking, refit, structure, recheck)."""
+    ranked = _entries()
+    clean = [dataclasses.replace(e, significant=False, tied_with=()) for e in ranked]
+    tied = [dataclasses.replace(ranked[0], tied_with=("actuator_lag",)),
+            dataclasses.replace(ranked[1], significant=True, tied_with=("input_delay",)), ranked[2]]
+    recheck = (dataclasses.replace(ranked[0], shrink_pct=21.5, shrink_se_pct=3.0),)
+    return {
+        "nothing": (clean, None, None, ()),
+        "effect_tied": (tied, None, None, ()),
+        "effect_settled_refit": (ranked, _refit(under_fitted=False), None, ()),
+        "under_fitted_then_effect": (ranked, _refit(), None, ()),
+        "unsettled": ([dataclasses.replace(e, significant=False, tied_with=()) for e in ranked],
+                      _refit(settled=False), None, ()),
+        "unsettled_not_under": (clean, _refit(under_fitted=False, settled=False), None, ()),
+        "structure_then_effect": (ranked, _refit(), _structure(45.0), recheck),
+        "effect_beyond_structure": (ranked, None, _structure(30.0), ()),
+        "structure_only": (clean, _refit(under_fitted=False), _structure(45.0), ()),
+        "idle_structure": (ranked, None, _structure(60.0, significant=False), ()),
+    }
+
+
+GOLDEN = {
+    'nothing': (
+        'no significant effect'),
+    'effect_tied': (
+        'input_delay (lat input delay delay 80 +- 5 ms), tied with actuator_lag: gap shrinks 40.0 % on '
+        'the validation flight'),
+    'effect_settled_refit': (
+        'input_delay (lat input delay delay 80 +- 5 ms): gap shrinks 40.0 % on the validation flight'),
+    'under_fitted_then_effect': (
+        'base model under-fitted: re-fitting it alone shrinks the validation gap 12.0 +- 2.5 %; beyond '
+        'that, input_delay (lat input delay delay 80 +- 5 ms): gap shrinks 40.0 % on the validation '
+        'flight'),
+    'unsettled': (
+        'base model under-fitted: re-fitting it alone shrinks the validation gap 12.0 +- 2.5 % and it is '
+        'still converging (training RSS down 3.2 % over the last 60 steps): re-identify the base model '
+        "(jaxheli identify --method pem --data FILE, or the diagnosis's re-fitted base, refit.theta), or "
+        'raise max_steps (--max-steps), before attributing effects'),
+    'unsettled_not_under': (
+        'base model under-fitted: re-fitting it alone shrinks the validation gap 12.0 +- 2.5 % and it is '
+        'still converging (training RSS down 3.2 % over the last 60 steps): re-identify the base model '
+        "(jaxheli identify --method pem --data FILE, or the diagnosis's re-fitted base, refit.theta), or "
+        'raise max_steps (--max-steps), before attributing effects'),
+    'structure_then_effect': (
+        'base model under-fitted: re-fitting it alone shrinks the validation gap 12.0 +- 2.5 %; beyond '
+        'that, base model structure: Nw freed (2.5), Xu beyond its bound (-3 past -1): re-fitting it in '
+        'the physical ranges shrinks the validation gap 45.0 +- 5.0 %; beyond that, input_delay (lat '
+        'input delay delay 80 +- 5 ms): gap shrinks 21.5 % on the validation flight'),
+    'effect_beyond_structure': (
+        'input_delay (lat input delay delay 80 +- 5 ms): gap shrinks 40.0 % on the validation flight, '
+        "more than the base model's structure (Nw freed (2.5), Xu beyond its bound (-3 past -1): 30.0 +- "
+        '5.0 %)'),
+    'structure_only': (
+        'base model structure: Nw freed (2.5), Xu beyond its bound (-3 past -1): re-fitting it in the '
+        'physical ranges shrinks the validation gap 45.0 +- 5.0 %; beyond that, no significant effect'),
+    'idle_structure': (
+        'input_delay (lat input delay delay 80 +- 5 ms): gap shrinks 40.0 % on the validation flight'),
+}
+"""Each case's verdict line as ``jaxheli.gap.ranking.verdict`` returned it before the verdict became a record (the
+command line prints it unchanged)."""
+
+
+@pytest.mark.parametrize("name", sorted(GOLDEN))
+def test_the_command_line_words_the_verdict_as_before(name):
+    assert verdict_line(find(*_cases()[name])) == GOLDEN[name]
+
+
+def test_the_library_sentence_names_no_option_and_differs_only_while_the_base_converges():
+    for name, case in _cases().items():
+        v = find(*case)
+        assert str(v) == sentence(v) and "--" not in str(v), name
+        assert (str(v) == GOLDEN[name]) == v.settled, name
+    assert str(find(*_cases()["unsettled"])).endswith("no effect is attributed until it settles")
+
+
+def test_the_record_says_what_was_found():
+    c = _cases()
+    assert find(*c["nothing"]) == Verdict()
+    tied = find(*c["effect_tied"])
+    assert tied.effect.effect == "input_delay" and tied.tied_with == ("actuator_lag",) and tied.structure is None
+    assert tied.effect.shrink_pct == pytest.approx(40.0, abs=0.05) and tied.effect.fitted.params["delay_lat"].stderr == 0.005
+    assert find(*c["effect_settled_refit"]).under_fitted is None  # settled and not under-fitted: not named
+    under = find(*c["under_fitted_then_effect"])
+    assert under.under_fitted is c["under_fitted_then_effect"][1] and under.settled
+    for name in ("unsettled", "unsettled_not_under"):
+        v = find(*c[name])
+        assert not v.settled and v.effect is None and v.structure is None, name
+    first = find(*c["structure_then_effect"])
+    assert first.structure is c["structure_then_effect"][2] and first.outshrinks is None
+    assert first.effect is c["structure_then_effect"][3][0]  # its entry of the re-check beyond the structure
+    beyond = find(*c["effect_beyond_structure"])
+    assert beyond.structure is None and beyond.outshrinks is c["effect_beyond_structure"][2]
+    assert find(*c["structure_only"]).effect is None and find(*c["idle_structure"]).structure is None
+
+
+_OPTION = re.compile(r"(?<![\\w-])--[a-z][a-z-]+")
+
+
+def test_no_module_of_the_gap_package_words_a_command_line_option():
+    """Strings in code under ``jaxheli/gap/`` (docstrings aside) name no ``--option``: the command line words
+    its own advice."""
+    found = []
+    for path in sorted(GAP.rglob("*.py")):
+        tree = ast.parse(path.read_text())
+        docs = {id(n.body[0].value) for n in ast.walk(tree)
+                if isinstance(n, (ast.Module, ast.FunctionDef, ast.ClassDef)) and n.body
+                and isinstance(n.body[0], ast.Expr) and isinstance(n.body[0].value, ast.Constant)}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docs:
+                found += [f"{path.name}:{node.lineno}: {m}" for m in _OPTION.findall(node.value)]
+    assert not found, found
