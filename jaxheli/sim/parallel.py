@@ -22,7 +22,6 @@ import jax
 import jax.numpy as jnp
 
 from .._types import Array, Float
-from .population_linalg import pmatmul, pmatvec
 
 HIGHEST = jax.lax.Precision.HIGHEST
 
@@ -45,12 +44,12 @@ def row_states(
 
 def population_states(A: Float[Array, "L n n P"], b: Float[Array, "L n P"]) -> Float[Array, "L n P"]:
     """The states ``x_{m+1} = A_m x_m + b_m`` of every candidate (population last, as
-    :mod:`jaxheli.sim.blocked` lays them out) after each of the ``L`` steps from ``x_0 = 0``; the products are the
-    fused per-candidate sums of :mod:`jaxheli.sim.population_linalg`."""
+    :mod:`jaxheli.sim.blocked` lays them out) after each of the ``L`` steps from ``x_0 = 0``."""
 
     def compose(first: tuple[Array, Array], then: tuple[Array, Array]) -> tuple[Array, Array]:
         A1, b1 = first
         A2, b2 = then
-        return pmatmul(A2, A1), pmatvec(A2, b1) + b2
+        return (jnp.einsum("lijp,ljkp->likp", A2, A1, precision=HIGHEST),
+                jnp.einsum("lijp,ljp->lip", A2, b1, precision=HIGHEST) + b2)
 
     return jax.lax.associative_scan(compose, (A, b))[1]
