@@ -201,7 +201,8 @@ def _numpy_rollout(theta, g, flight, hold, segment=None, x0="zero", reset="carry
 
 def _pair(flight, **options):
     """The blocked kernel with scanned and with parallel block starts."""
-    scan, parallel = (make_simulator(flight, method="blocked", time_form=form, **options) for form in ("scan", "parallel"))
+    scan, parallel = (make_simulator(flight, method="blocked", time_form=form, **options)
+                      for form in ("scan", "parallel"))
     assert parallel.plan(2).parallel and not scan.plan(2).parallel
     return scan, parallel
 

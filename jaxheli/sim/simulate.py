@@ -211,7 +211,8 @@ class Simulator(eqx.Module):
         runs = (seg, 0, run_bound(n, seg, self.dt)) if initial == "estimated" else (0, seg, 1)
         return dataclasses.replace(
             self, x0=x0_arr, outputs=tuple(outputs), g=float(g), hold=hold, initial=initial, segment_samples=runs[1],
-            reset=reset, method=method, block=L, run_samples=jnp.asarray(runs[0]), max_runs=runs[2], time_form=time_form,
+            reset=reset, method=method, block=L, run_samples=jnp.asarray(runs[0]), max_runs=runs[2],
+            time_form=time_form,
         )
 
     def describe(self) -> dict[str, object]:
