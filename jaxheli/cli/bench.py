@@ -18,7 +18,8 @@ def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
         description="Throughput of the population cost (plain scan and blocked kernel) for every population size P "
         "and flight length N, next to a per-candidate NumPy loop (and mealpy's IWO when installed) measured in "
         "the same run, with the machine's FLOP limit; seconds per IWO generation; the paper's whole experiment "
-        "(10 trials x 1000 generations) end to end; and speed-up from sharding the population over local devices.",
+        "(10 trials x 1000 generations) end to end; speed-up from sharding the population over local devices; and "
+        "the plain scan against the parallel-in-time form of each recursion, with the table of forms they select.",
     )
     p.add_argument("--sizes", type=int, nargs="+", default=[40, 400, 4000], help="population sizes P")
     p.add_argument("--samples", type=int, nargs="+", default=[1000, 8590, 40000], help="flight lengths N")
@@ -37,6 +38,12 @@ def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                    help="methods timed from flight A to a model, compilation included (none: skip)")
     p.add_argument("--model-iterations", type=int, default=1000, help="generations of the timed population methods")
     p.add_argument("--pem-steps", type=int, default=200, help="Levenberg-Marquardt steps of the timed PEM")
+    p.add_argument("--forms", nargs="+", default=["auto"], choices=["auto", "scan", "parallel"],
+                   help="time forms the experiment and the time to a model run under, each once (jaxheli.sim.forms)")
+    p.add_argument("--form-samples", type=int, nargs="*", default=None,
+                   help="flight lengths N of the scan-against-parallel rows (default: --samples; none: skip)")
+    p.add_argument("--form-sizes", type=int, nargs="*", default=None,
+                   help="population sizes P of the scan-against-parallel rows (default: --sizes)")
     p.add_argument("--quick", action="store_true", help="tiny settings (a smoke test, seconds)")
     p.add_argument("--out", default="results/bench", help="directory for bench.json, bench.md, throughput.png")
     add_quiet_option(p)
@@ -83,7 +90,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                      generations=args.generations, experiment_iterations=args.experiment_iterations,
                      trials=args.trials, experiment_data=args.data, model_methods=args.model_methods,
                      model_iterations=args.model_iterations, pem_steps=args.pem_steps, quick=args.quick,
-                     settings={k: v for k, v in vars(args).items() if k != "func"})
+                     settings={k: v for k, v in vars(args).items() if k != "func"}, forms=args.forms,
+                     form_samples=args.form_samples, form_sizes=args.form_sizes)
     paths = write_bench(result, args.out)
     print(markdown(result))
     print(f"wrote {', '.join(map(str, paths))}")
