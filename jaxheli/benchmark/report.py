@@ -103,7 +103,8 @@ def plot_throughput(result: dict, path: str | Path) -> Path:
     ax.set_ylabel("candidate evaluations / s")
     ax.set_title("population cost throughput (dotted: per-candidate NumPy loop)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
+    if rows:
+        ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     return Path(path)

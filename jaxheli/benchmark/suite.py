@@ -37,6 +37,7 @@ def measure(
     forms: Sequence[str] = ("auto",),
     form_samples: Sequence[int] | None = None,
     form_sizes: Sequence[int] | None = None,
+    costs: bool = True,
 ) -> dict:
     """Every measurement of one run, as a JSON-ready dict (printing a line per rate measured).
 
@@ -47,7 +48,8 @@ def measure(
     present, else a synthetic 8590-sample flight; with ``quick`` the shortest synthetic flight of ``samples``); the
     time to a model of each of ``model_methods`` (:func:`~jaxheli.benchmark.time_to_model.time_to_model`,
     ``model_iterations`` generations, ``pem_steps`` PEM steps) on flight A prepared as the paper comparison does
-    (with ``quick``, or without the shared data: the experiment's flight). The experiment and the time to a model run
+    (with ``quick``, ``experiment_data``, or without the shared data: the experiment's flight); the rates of the costs
+    the engines minimise (``costs``). The experiment and the time to a model run
     once per time form of ``forms`` (``"auto"``, ``"scan"``, ``"parallel"``: :mod:`jaxheli.sim.forms`); the scan
     and the parallel form of each recursion in time are timed side by side over ``form_samples`` and, for the
     population cost, ``form_sizes`` (default: ``samples`` and ``sizes``; an empty list skips them), with the table
@@ -72,7 +74,8 @@ def measure(
             "sizes": sizes, "samples": samples, "dtypes": dtypes, "repeats": repeats, "generations": generations,
             "experiment_iterations": experiment_iterations, "trials": trials, "experiment_data": experiment_data,
             "model_methods": list(model_methods), "model_iterations": model_iterations, "pem_steps": pem_steps,
-            "quick": quick, "forms": list(forms), "form_samples": form_samples, "form_sizes": form_sizes},
+            "quick": quick, "forms": list(forms), "form_samples": form_samples, "form_sizes": form_sizes,
+            "costs": costs},
         "matmul_peak_flops": {},
         "rates": [],
         "iwo_generation": [],
@@ -119,9 +122,10 @@ def measure(
         flight = bench_flight(min(samples)) if quick else _experiment_flight(experiment_data)
         result["experiments"] = [_experiment(flight, trials, experiment_iterations, baselines, form) for form in forms]
         result["experiment"] = result["experiments"][0]
-    from .costs import cost_rates
+    if costs:
+        from .costs import cost_rates
 
-    result["costs"] = {"N": mid, "P": COST_CANDIDATES, "rows": cost_rates(flights[mid], COST_CANDIDATES, repeats)}
+        result["costs"] = {"N": mid, "P": COST_CANDIDATES, "rows": cost_rates(flights[mid], COST_CANDIDATES, repeats)}
     if model_methods:
         result["time_to_model"] = [row for form in forms for row in _time_to_model(
             model_methods, model_iterations, pem_steps, baselines, quick, flights, experiment_data, form)]
@@ -136,6 +140,8 @@ def _time_to_model(methods: Sequence[str], iterations: int, pem_steps: int, base
 
     if quick:
         flight = flights[min(flights)]
+    elif experiment_data:
+        flight = _experiment_flight(experiment_data)
     else:
         try:
             flight = paper_training_flight()
