@@ -30,16 +30,18 @@ TABLE_ENV = "JAXHELI_TIME_FORM_TABLE"
 
 PARALLEL_FROM: dict[str, dict[str, int | None]] = {
     "cpu": {"population": None, "recursion": None},
-    "gpu": {"population": 64, "recursion": 64},
+    "gpu": {"population": 32, "recursion": 64},
 }
 """The fewest sequential steps at which the parallel form is used, per backend and path (``None``: never).
 
-CPU: the plain scan was faster at every size measured (``jaxheli bench``'s ``time_forms`` rows, N = 300 to 40,000
-samples, P = 40 to 4,000 candidates, 40 tangents; docs/performance_history.md), so CPU results are those of the
-scan, bit for bit. GPU: provisional, from the one H200 record (a scan step costs about 8 microseconds of launch
-and loop overhead whatever its size, so a recursion of more than a few dozen steps is depth-bound there); replace it
-by the ``selection`` of ``benchmarks/gpu.py``'s bench, or point :data:`TABLE_ENV` at that result. Backends not listed
-use the scan."""
+CPU: the plain scan was faster in every row measured (``jaxheli bench``'s ``time_forms`` rows on a 2-core CPU:
+population cost over N = 1,000 to 40,000 samples and P = 40 to 4,000 candidates in float32, the parallel form 1.5 to
+11 times slower; the polish's outputs and Jacobian over the same N, 2.7 to 3.4 times slower; figures in
+docs/performance_history.md), so CPU results are the scan's, bit for bit. GPU: provisional, not measured here: a
+scan step costs microseconds of loop overhead there whatever its size, which made the one H200 record depth-bound,
+so a recursion longer than a few dozen steps is taken to favour the parallel form; replace these rows by the
+``selection`` of ``benchmarks/gpu.py``'s ``forms`` step, or point :data:`TABLE_ENV` at that result. Backends not
+listed use the scan."""
 
 MAX_PARALLEL_ELEMENTS = 2**30
 """The parallel form materialises one matrix per step (``steps x n x n x batch`` elements, about twice that in the
