@@ -31,14 +31,16 @@ def paper_experiment(
     chunk: int = 100,
     seed: int = 0,
     progress: bool = False,
+    time_form: str = "auto",
 ) -> dict[str, object]:
     """Run IWO with the paper's settings (``trials`` vmapped trials of ``iterations`` generations, zero
     initial state, Pearson cost on every output channel of ``flight``) and time it, compilation included.
 
-    Returns wall seconds, candidate evaluations (the real seeds, the only candidates scored, and what a per-candidate
+    ``time_form``: how the kernel's block starts run (:func:`jaxheli.sim.forms.choose_form`). Returns the form used,
+    wall seconds, candidate evaluations (the real seeds, the only candidates scored, and what a per-candidate
     loop would score too), the slots of IWO's fixed seed buffer, evaluations per second and each trial's best cost.
     """
-    sim = make_simulator(flight)
+    sim = make_simulator(flight, time_form=time_form)
     cost = PopulationCost(sim, jnp.asarray(flight.outputs, dtype), jnp.dtype(dtype).name)
     opt = IWO(LOWER, UPPER, iterations=iterations)
     keys = jax.random.split(jax.random.key(seed), trials)
@@ -55,6 +57,8 @@ def paper_experiment(
         "iterations": iterations,
         "dtype": jnp.dtype(dtype).name,
         "method": sim.method,
+        "time_form": time_form,
+        "resolved_form": "parallel" if sim.method == "blocked" and sim.plan(40).parallel else "scan",
         "seconds": seconds,
         "evaluations": scored,
         "buffer_slots": iwo_buffer_slots(opt, trials),

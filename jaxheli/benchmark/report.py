@@ -26,15 +26,30 @@ def markdown(result: dict) -> str:
         lines += ["", "## Seconds per IWO generation (the real seeds of a 280-slot buffer)", "", "| dtype | N | method | s/generation |",
                   "|---|---|---|---|"]
         lines += [f"| {g['dtype']} | {g['N']} | {g['method']} | {g['seconds']:.4f} |" for g in result["iwo_generation"]]
-    if result.get("experiment"):
-        e = result["experiment"]
+    if result.get("time_forms"):
+        tf = result["time_forms"]
+        lines += ["", f"## Recursions in time: plain scan against the parallel form ({tf['backend']}, {tf['device']})",
+                  "", "Best of the repeats, the two forms timed alternately; the difference is the largest between "
+                  "their results, relative to the largest result.", "",
+                  "| path | dtype | N | P / tangents | steps | scan s | parallel s | parallel / scan | difference |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for r in tf["rows"]:
+            size = r.get("P", r.get("tangents"))
+            par = (f"{r['parallel_s']:.4g} | {r['parallel_over_scan']:.2f} | {r['difference']:.1e}"
+                   if "parallel_s" in r else f"skipped ({r.get('skipped')}) | - | -")
+            lines.append(f"| {r['path']} | {r['dtype']} | {r['N']} | {size} | {r['steps']} | {r['scan_s']:.4g} | "
+                         f"{par} |")
+        lines += ["", "Selected table (the fewest steps from which the parallel form is used; none: never): "
+                      f"`{json.dumps(tf['selection'])}`"]
+    for e in result.get("experiments") or ([result["experiment"]] if result.get("experiment") else []):
         base = e["evaluations"] / e["numpy_rate"]
+        form = f", time form {e['time_form']} ({e['resolved_form']})" if "time_form" in e else ""
         lines += ["", "## The paper's whole experiment", "",
                   f"{e['trials']} trials x {e['iterations']} IWO generations on {e['flight']} ({e['samples']} samples, "
-                  f"{e['dtype']}, {e['method']} kernel, {e['devices']} device(s)): **{e['seconds']:.1f} s** end to end "
-                  f"including compilation, {e['evaluations']:,} candidates scored ({e['evaluations_per_s']:.0f}/s). "
-                  f"The per-candidate NumPy loop would take {base:.0f} s ({base / 3600:.1f} h): "
-                  f"{base / e['seconds']:.0f}x longer."]
+                  f"{e['dtype']}, {e['method']} kernel{form}, {e['devices']} device(s)): **{e['seconds']:.1f} s** end "
+                  f"to end including compilation, {e['evaluations']:,} candidates scored "
+                  f"({e['evaluations_per_s']:.0f}/s). The per-candidate NumPy loop would take {base:.0f} s "
+                  f"({base / 3600:.1f} h): {base / e['seconds']:.0f}x longer."]
     if result.get("costs"):
         c = result["costs"]
         lines += ["", f"## Costs the engines minimise (N = {c['N']}, P = {c['P']}, float64, compiled)", "",
@@ -45,13 +60,15 @@ def markdown(result: dict) -> str:
                   "Each method in a fresh process, as `jaxheli identify` runs: JAX's default devices "
                   f"({', '.join(sorted({str(r.get('devices', '?')) for r in result['time_to_model']}))}), "
                   "nothing compiled before it, no persistent cache.", "",
-                  "| method | samples | s (measured) | NumPy loop s (estimated) | ratio | fit % p / q / phi / theta |",
-                  "|---|---|---|---|---|---|"]
+                  "| method | time form | samples | s (measured) | NumPy loop s (estimated) | ratio "
+                  "| fit % p / q / phi / theta |",
+                  "|---|---|---|---|---|---|---|"]
         for r in result["time_to_model"]:
             fit = " / ".join(f"{r['fit_percent'][c]:.1f}" for c in ("p", "q", "phi", "theta")
                              if c in r.get("fit_percent", {})) or f"RSS {r['rss']:.4g} ({r['steps']} steps)"
             numpy = f"{r['numpy_seconds']:.0f} | {r['numpy_ratio']:.0f}x" if "numpy_seconds" in r else "- | -"
-            lines.append(f"| {r['method']} | {r['samples']} | {r['seconds']:.1f} | {numpy} | {fit} |")
+            lines.append(f"| {r['method']} | {r.get('time_form', 'auto')} | {r['samples']} | {r['seconds']:.1f} | "
+                         f"{numpy} | {fit} |")
         if any("numpy_seconds" in r and r["method"].startswith("iwo") for r in result["time_to_model"]):
             lines += ["", "IWO's NumPy loop: the candidates IWO scored, at the loop's rate measured in this run (an "
                           "estimate, not a run; the frequency fit and the polish are not counted in it)."]
@@ -86,7 +103,8 @@ def plot_throughput(result: dict, path: str | Path) -> Path:
     ax.set_ylabel("candidate evaluations / s")
     ax.set_title("population cost throughput (dotted: per-candidate NumPy loop)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
+    if rows:
+        ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     return Path(path)

@@ -15,7 +15,7 @@ SCAN_LIMIT = 4.0e7
 COST_CANDIDATES = 40
 """Candidates of the cost comparison (IWO scores 40 per device per call)."""
 QUICK = dict(sizes=[16, 64], samples=[300], dtypes=["float32"], generations=2, experiment_iterations=3, trials=2,
-             repeats=1, model_iterations=3, pem_steps=3)
+             repeats=1, model_iterations=3, pem_steps=3, form_samples=[300], form_sizes=[16])
 """Tiny settings of :func:`measure` (a smoke test, seconds)."""
 
 
@@ -34,6 +34,10 @@ def measure(
     pem_steps: int = 200,
     quick: bool = False,
     settings: dict[str, Any] | None = None,
+    forms: Sequence[str] = ("auto",),
+    form_samples: Sequence[int] | None = None,
+    form_sizes: Sequence[int] | None = None,
+    costs: bool = True,
 ) -> dict:
     """Every measurement of one run, as a JSON-ready dict (printing a line per rate measured).
 
@@ -44,8 +48,13 @@ def measure(
     present, else a synthetic 8590-sample flight; with ``quick`` the shortest synthetic flight of ``samples``); the
     time to a model of each of ``model_methods`` (:func:`~jaxheli.benchmark.time_to_model.time_to_model`,
     ``model_iterations`` generations, ``pem_steps`` PEM steps) on flight A prepared as the paper comparison does
-    (with ``quick``, or without the shared data: the experiment's flight). ``settings`` is recorded as the
-    result's ``settings`` (default: these arguments).
+    (with ``quick``, ``experiment_data``, or without the shared data: the experiment's flight); the rates of the costs
+    the engines minimise (``costs``). The experiment and the time to a model run
+    once per time form of ``forms`` (``"auto"``, ``"scan"``, ``"parallel"``: :mod:`jaxheli.sim.forms`); the scan
+    and the parallel form of each recursion in time are timed side by side over ``form_samples`` and, for the
+    population cost, ``form_sizes`` (default: ``samples`` and ``sizes``; an empty list skips them), with the table
+    they select (:mod:`jaxheli.benchmark.time_forms`). ``settings`` is recorded as the result's ``settings``
+    (default: these arguments).
     """
     import jax
     import jax.numpy as jnp
@@ -65,7 +74,8 @@ def measure(
             "sizes": sizes, "samples": samples, "dtypes": dtypes, "repeats": repeats, "generations": generations,
             "experiment_iterations": experiment_iterations, "trials": trials, "experiment_data": experiment_data,
             "model_methods": list(model_methods), "model_iterations": model_iterations, "pem_steps": pem_steps,
-            "quick": quick},
+            "quick": quick, "forms": list(forms), "form_samples": form_samples, "form_sizes": form_sizes,
+            "costs": costs},
         "matmul_peak_flops": {},
         "rates": [],
         "iwo_generation": [],
@@ -102,42 +112,56 @@ def measure(
     mid = min(flights, key=lambda n: abs(n - 8590))
     rate = mealpy_rate(flights[mid])
     result["mealpy"] = None if rate is None else {"N": mid, "rate": rate}
+    form_samples = samples if form_samples is None else form_samples
+    form_sizes = sizes if form_sizes is None else form_sizes
+    if form_samples:
+        from .time_forms import measure_forms
+
+        result["time_forms"] = measure_forms(form_samples, form_sizes, dtypes, max(repeats, 2))
     if experiment_iterations > 0:
         flight = bench_flight(min(samples)) if quick else _experiment_flight(experiment_data)
-        result["experiment"] = _experiment(flight, trials, experiment_iterations, baselines)
-    from .costs import cost_rates
+        result["experiments"] = [_experiment(flight, trials, experiment_iterations, baselines, form) for form in forms]
+        result["experiment"] = result["experiments"][0]
+    if costs:
+        from .costs import cost_rates
 
-    result["costs"] = {"N": mid, "P": COST_CANDIDATES, "rows": cost_rates(flights[mid], COST_CANDIDATES, repeats)}
+        result["costs"] = {"N": mid, "P": COST_CANDIDATES, "rows": cost_rates(flights[mid], COST_CANDIDATES, repeats)}
     if model_methods:
-        result["time_to_model"] = _time_to_model(model_methods, model_iterations, pem_steps, baselines, quick,
-                                                 flights, experiment_data)
+        result["time_to_model"] = [row for form in forms for row in _time_to_model(
+            model_methods, model_iterations, pem_steps, baselines, quick, flights, experiment_data, form)]
     return result
 
 
 def _time_to_model(methods: Sequence[str], iterations: int, pem_steps: int, baselines: dict[int, float],
-                   quick: bool, flights: dict[int, FlightData], experiment_data: str | None) -> list[dict]:
+                   quick: bool, flights: dict[int, FlightData], experiment_data: str | None, time_form: str
+                   ) -> list[dict]:
     from .baseline import numpy_rate
     from .time_to_model import paper_training_flight, time_to_model
 
     if quick:
         flight = flights[min(flights)]
+    elif experiment_data:
+        flight = _experiment_flight(experiment_data)
     else:
         try:
             flight = paper_training_flight()
         except FileNotFoundError:
             flight = _experiment_flight(experiment_data)
     rate = baselines.get(flight.n_samples) or numpy_rate(flight, 4)
-    return time_to_model(flight, methods=methods, iterations=iterations, pem_steps=pem_steps, numpy_rate=rate)
+    return time_to_model(flight, methods=methods, iterations=iterations, pem_steps=pem_steps, numpy_rate=rate,
+                         time_form=time_form)
 
 
-def _experiment(flight: FlightData, trials: int, iterations: int, baselines: dict[int, float]) -> dict:
+def _experiment(flight: FlightData, trials: int, iterations: int, baselines: dict[int, float], time_form: str
+                ) -> dict:
     import jax
     import jax.numpy as jnp
 
     from .baseline import numpy_rate
     from .experiment import paper_experiment
 
-    e = paper_experiment(flight, trials=trials, iterations=iterations, dtype=jnp.float32, progress=True)
+    e = paper_experiment(flight, trials=trials, iterations=iterations, dtype=jnp.float32, progress=True,
+                         time_form=time_form)
     e["numpy_rate"] = baselines.get(flight.n_samples) or numpy_rate(flight, 4)
     e["devices"] = jax.local_device_count()
     return e

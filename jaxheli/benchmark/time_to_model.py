@@ -42,6 +42,7 @@ def time_to_model(
     seed: int = 0,
     fresh: bool = True,
     progress: bool | None = None,
+    time_form: str = "auto",
 ) -> list[dict]:
     """Identify ``flight`` once per method, timed end to end (compilation included): ``"pem"``
     (:func:`jaxheli.pem`, ``pem_steps`` Levenberg-Marquardt steps from the middle of the box) and any
@@ -49,7 +50,9 @@ def time_to_model(
     default polish, standard errors and scores included: what a user waits for). With ``fresh`` each method runs in
     a new process (see the module); else in this one, after whatever it compiled before. ``progress``: the run
     writes its stages' progress lines (:mod:`jaxheli._progress`; ``None``: when this process does, so a fresh
-    process reports as the bench that started it).
+    process reports as the bench that started it). ``time_form`` ``"scan"`` or ``"parallel"`` is set as
+    ``JAXHELI_TIME_FORM`` in the fresh process (:mod:`jaxheli.sim.forms`; ``"auto"`` leaves the variable as this
+    process has it); with ``fresh=False`` this process's setting holds.
 
     Each row: method, seconds, the JAX devices it ran on, the model's training fit % and Pearson per channel
     (``identify``'s methods) or its sum of squares and steps (PEM), and the seconds the per-candidate NumPy loop at
@@ -63,7 +66,8 @@ def time_to_model(
         note(f"time to a model: {method}" + (" in a fresh process" if fresh else ""))
         args = (flight, method, iterations, pem_steps, seed, progress)
         if fresh:
-            with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"), initializer=_float64) as pool:
+            with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"), initializer=_float64,
+                                     initargs=(time_form,)) as pool:
                 row = pool.submit(_timed, *args).result()
         else:
             row = _timed(*args)
@@ -73,12 +77,19 @@ def time_to_model(
             row["numpy_seconds"] = simulations / numpy_rate
             row["numpy_ratio"] = row["numpy_seconds"] / row["seconds"]
         rows.append(row)
-        print(f"time to model, {method}: {row['seconds']:.1f} s", flush=True)
+        print(f"time to model, {method} (time form {time_form}): {row['seconds']:.1f} s", flush=True)
     return rows
 
 
-def _float64() -> None:
-    """A fresh process's set-up: float64, as the command line runs."""
+def _float64(time_form: str = "auto") -> None:
+    """A fresh process's set-up: float64, as the command line runs, and ``time_form`` (unless ``"auto"``) as
+    ``JAXHELI_TIME_FORM``."""
+    import os
+
+    from ..sim.forms import ENV
+
+    if time_form != "auto":
+        os.environ[ENV] = time_form
     import jax
 
     jax.config.update("jax_enable_x64", True)
@@ -95,6 +106,8 @@ def _timed(flight: FlightData, method: str, iterations: int, pem_steps: int, see
 def _row(flight: FlightData, method: str, iterations: int, pem_steps: int, seed: int) -> dict[str, Any]:
     import jax
 
+    from ..sim.forms import forced_form
+
     start = time.perf_counter()
     if method == "pem":
         fit = pem(flight, max_steps=pem_steps)
@@ -107,4 +120,4 @@ def _row(flight: FlightData, method: str, iterations: int, pem_steps: int, seed:
         row = {"method": method, "seconds": time.perf_counter() - start,
                "fit_percent": result.train["fit_percent"], "pearson": result.train["pearson"],
                "simulations": result.settings["evaluations"] if method.startswith("iwo") else None}
-    return {**row, "devices": jax.local_device_count(), "samples": flight.n_samples}
+    return {**row, "devices": jax.local_device_count(), "samples": flight.n_samples, "time_form": forced_form()}

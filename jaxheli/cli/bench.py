@@ -18,17 +18,19 @@ def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
         description="Throughput of the population cost (plain scan and blocked kernel) for every population size P "
         "and flight length N, next to a per-candidate NumPy loop (and mealpy's IWO when installed) measured in "
         "the same run, with the machine's FLOP limit; seconds per IWO generation; the paper's whole experiment "
-        "(10 trials x 1000 generations) end to end; and speed-up from sharding the population over local devices.",
+        "(10 trials x 1000 generations) end to end; speed-up from sharding the population over local devices; and "
+        "the plain scan against the parallel-in-time form of each recursion, with the table of forms they select.",
     )
-    p.add_argument("--sizes", type=int, nargs="+", default=[40, 400, 4000], help="population sizes P")
+    p.add_argument("--sizes", type=int, nargs="*", default=[40, 400, 4000], help="population sizes P (none: skip "
+                   "the throughput rows)")
     p.add_argument("--samples", type=int, nargs="+", default=[1000, 8590, 40000], help="flight lengths N")
     p.add_argument("--dtypes", nargs="+", default=["float32", "float64"], choices=["float32", "float64"])
     p.add_argument("--repeats", type=int, default=3, help="timed repeats per measurement (best counts)")
     p.add_argument("--generations", type=int, default=10, help="IWO generations timed per setting (0: skip)")
     p.add_argument("--experiment-iterations", type=int, default=1000, help="paper experiment generations (0: skip)")
     p.add_argument("--trials", type=int, default=10, help="paper experiment trials")
-    add_data_option(p, "the flight of the paper experiment (default: flight A from the shared data if present, "
-                       "else a synthetic 8590-sample flight)")
+    add_data_option(p, "the flight of the paper experiment and the time to a model (default: flight A from the "
+                       "shared data if present, else a synthetic 8590-sample flight)")
     p.add_argument("--experiment-data", action=OldForm, old="--experiment-data FILE", new="--data FILE",
                    adopt=adopt_as_data)
     p.add_argument("--host-devices", type=int, default=None,
@@ -37,6 +39,14 @@ def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                    help="methods timed from flight A to a model, compilation included (none: skip)")
     p.add_argument("--model-iterations", type=int, default=1000, help="generations of the timed population methods")
     p.add_argument("--pem-steps", type=int, default=200, help="Levenberg-Marquardt steps of the timed PEM")
+    p.add_argument("--forms", nargs="+", default=["auto"], choices=["auto", "scan", "parallel"],
+                   help="time forms the experiment and the time to a model run under, each once (jaxheli.sim.forms)")
+    p.add_argument("--form-samples", type=int, nargs="*", default=None,
+                   help="flight lengths N of the scan-against-parallel rows (default: --samples; none: skip)")
+    p.add_argument("--form-sizes", type=int, nargs="*", default=None,
+                   help="population sizes P of the scan-against-parallel rows (default: --sizes)")
+    p.add_argument("--costs", action=argparse.BooleanOptionalAction, default=True,
+                   help="rates of the costs the engines minimise")
     p.add_argument("--quick", action="store_true", help="tiny settings (a smoke test, seconds)")
     p.add_argument("--out", default="results/bench", help="directory for bench.json, bench.md, throughput.png")
     add_quiet_option(p)
@@ -83,7 +93,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                      generations=args.generations, experiment_iterations=args.experiment_iterations,
                      trials=args.trials, experiment_data=args.data, model_methods=args.model_methods,
                      model_iterations=args.model_iterations, pem_steps=args.pem_steps, quick=args.quick,
-                     settings={k: v for k, v in vars(args).items() if k != "func"})
+                     settings={k: v for k, v in vars(args).items() if k != "func"}, forms=args.forms,
+                     form_samples=args.form_samples, form_sizes=args.form_sizes, costs=args.costs)
     paths = write_bench(result, args.out)
     print(markdown(result))
     print(f"wrote {', '.join(map(str, paths))}")

@@ -17,6 +17,10 @@ Block ``j`` covers the outputs at samples ``jL+1 .. jL+L``, so a restart at a bl
 length a multiple of ``L``) acts after the block's last output, the prediction before the restart, as in
 the plain scan. Sample 0 (``C x0``) and the ``tail`` samples after the last whole block are evaluated
 directly. Arrays here keep the population as the last (fastest) axis, ``[..., P]``.
+
+The block starts are a recursion of ``J`` steps; with ``plan.parallel`` they come from the parallel form
+(:func:`jaxheli.sim.parallel.population_states`: a restart is a step whose matrix keeps only the carried states),
+sequential depth about ``2 log2 J`` instead of ``J``.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from .._types import Array, Float
 from .discretize import Discrete, Hold
 from ..model import build_ab
 from .population_linalg import discretize_population, pmatmul, pmatvec
+from .parallel import population_states
 
 PREFERRED_BLOCK = 16
 """Block length used when the segment length does not decide it (measured fastest on CPU)."""
@@ -48,6 +53,7 @@ class Plan(NamedTuple):
     tail: int  # outputs J L + 1 .. N - 1, evaluated directly
     segment: int  # restart interval in samples (0: none), a multiple of L
     foh: bool
+    parallel: bool = False  # block starts by the parallel form (jaxheli.sim.parallel), not one after another
 
     @property
     def first_lag(self) -> int:
@@ -174,6 +180,8 @@ def block_states(
         return jnp.zeros((0, n, P), xi0.dtype), xi0
     drive = jnp.dot(U[:, : L * m], ops.R.reshape(L * m, n * P)).reshape(plan.n_blocks, n, P)
     restart = plan.restarts()
+    if plan.parallel:
+        return _parallel_states(ops, drive, xi0, u, measured_states, mask, keep_unmeasured, plan)
     if not restart.any():
         def free(xi, w):
             return pmatvec_t(ops.F, xi) + w, xi
@@ -194,6 +202,38 @@ def block_states(
     inputs = (drive, jnp.asarray(restart), measured_states[boundary].astype(xi0.dtype), u[boundary])
     last, X = jax.lax.scan(step, xi0, inputs)
     return X, last
+
+
+def _parallel_states(
+    ops: Operators,
+    drive: Float[Array, "J n P"],
+    xi0: Float[Array, "n P"],
+    u: Float[Array, "N m"],
+    measured_states: Float[Array, "N n"],
+    mask: np.ndarray,
+    keep_unmeasured: bool,
+    plan: Plan,
+) -> tuple[Float[Array, "J n P"], Float[Array, "n P"]]:
+    """:func:`block_states` by the parallel form. Block ``j`` is the step ``xi -> F xi + w_j``; where it ends in a
+    restart, ``xi -> K (F xi + w_j + s_j) + xm_j - s_j`` with ``K`` keeping the unmeasured states (all zero under
+    ``reset="zero"``), ``xm_j`` the measured ones and ``s_j = B1 u`` the first-order hold's shift at the boundary."""
+    J, L = plan.n_blocks, plan.block
+    F = ops.powers[L]  # Ad^L, [n, n, P]
+    A = jnp.broadcast_to(F[None], (J,) + F.shape)
+    b = drive
+    restart = plan.restarts()
+    if restart.any():
+        boundary = (np.arange(J) + 1) * L
+        measured = np.asarray(mask, bool)
+        kept = jnp.asarray((~measured) * (1.0 if keep_unmeasured else 0.0), F.dtype)[:, None]  # [n, 1]
+        xm = jnp.where(jnp.asarray(measured)[:, None], measured_states[boundary][:, :, None].astype(F.dtype), 0.0)
+        shift = pmatvec(ops.B1, u[boundary][:, :, None]) if plan.foh else jnp.zeros_like(b)  # [J, n, P]
+        r = jnp.asarray(restart)
+        A = jnp.where(r[:, None, None, None], kept[None, :, :, None] * A, A)
+        b = jnp.where(r[:, None, None], kept[None] * (b + shift) + xm - shift, b)
+    b = b.at[0].add(pmatvec(A[0], xi0))
+    states = population_states(A, b)  # xi after blocks 0 .. J-1
+    return jnp.concatenate([xi0[None], states[:-1]]), states[-1]
 
 
 def pmatvec_t(Ft: Float[Array, "n n P"], x: Float[Array, "n P"]) -> Float[Array, "n P"]:

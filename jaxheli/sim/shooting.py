@@ -20,7 +20,8 @@ samples (the whole record for one run). Channels the simulator cannot restart fr
 stick-multiple flapping columns) get no weight.
 
 Cost: about three simulations per ``theta``, each one linear recursion over the whole record whose carry is cut where
-a run starts afresh (:mod:`jaxheli.sim.recursion`, whose tangent is cheap): the runs from rest, one backward (adjoint)
+a run starts afresh (:mod:`jaxheli.sim.recursion`, whose tangent is cheap; in the simulator's
+:attr:`~jaxheli.sim.simulate.Simulator.time_form`): the runs from rest, one backward (adjoint)
 pass that sums each run's right-hand side ``sum_m (C Ad^m)' W e_j[m]``, and the free response from the fitted states,
 added to the runs from rest. The Gram matrices ``sum_m (C Ad^m)' W C Ad^m`` (the same for all runs but the first and
 the last) come from ``log2 L`` doublings of 13 x 13 matrices, never from the powers at every sample. ``L`` is a
@@ -96,7 +97,7 @@ def estimated_outputs(sim: Simulator, theta: Float[Array, "40"]) -> Float[Array,
     idx = tuple(int(i) for i in output_indices(sim.outputs))
     n = sim.inputs.shape[0]
     starting = (1.0 - carry)[:, None] * x0[jnp.minimum(jnp.arange(n - 1) // L, x0.shape[0] - 1)]  # [N - 1, 13]
-    free = linear_recursion(d.Ad.T, d.Ad.T, starting, x0[0], False, idx, carry)
+    free = linear_recursion(d.Ad.T, d.Ad.T, starting, x0[0], False, idx, carry, sim.time_form)
     return jnp.concatenate([x0[0, np.array(idx)][None], forced + free])
 
 
@@ -128,12 +129,12 @@ def _project(sim: Simulator, theta: Float[Array, "40"]) -> tuple[Discrete, Float
     rest = jnp.zeros((n_x,), d.Ad.dtype)
     keep = tuple(int(i) for i in idx)
     forced = linear_recursion(d.Ad.T, jnp.concatenate([d.B0.T, d.B1.T]), jnp.concatenate([u[:-1], u[1:]], -1), rest,
-                              False, keep, carry)  # [N - 1, k]
+                              False, keep, carry, sim.time_form)  # [N - 1, k]
     C = jnp.eye(n_x, dtype=d.Ad.dtype)[idx]  # [k, 13]
     errors = (measured[1:] - forced) * weight[None]  # W e, samples 1 on
     # mu_s = (c mu_{s+1} + e_{s+1} W C) Ad backwards, cut after each run's last sample: run j's sum is mu_{jL}
     ends = ((jnp.arange(n - 1) + 1) % L != 0).astype(d.Ad.dtype)
-    mu = linear_recursion(d.Ad, C @ d.Ad, errors, rest, True, None, ends)
+    mu = linear_recursion(d.Ad, C @ d.Ad, errors, rest, True, None, ends, sim.time_form)
     run = jnp.arange(sim.max_runs)
     rhs = mu[jnp.minimum(run * L, n - 2)] * (run < K)[:, None]
     rhs = rhs.at[0].add((measured[0] * weight) @ C)  # run 0 also holds step 0 (its run from rest is 0 there)

@@ -26,6 +26,7 @@ import numpy as np
 from .._types import Array, Float, Int, Params
 from .blocked import Blocks, Plan, blocked_rollout, choose_block, make_plan, population_discrete, run_blocks
 from .discretize import Hold, discretize
+from .forms import FORMS, TimeForm, choose_form
 from .shooting import estimated_outputs, run_bound
 from ..data.flight import FlightData
 from ..model import FLAPPING, G_SI, MEASURABLE, N_STATES, build_ab, output_indices
@@ -59,6 +60,9 @@ class Simulator(eqx.Module):
     shares one compiled simulation (``segment_samples`` is 0 then)."""
     max_runs: int = eqx.field(static=True, default=1)
     """Estimated initial states: the compiled bound on the number of runs (:func:`~jaxheli.sim.shooting.run_bound`)."""
+    time_form: TimeForm = eqx.field(static=True, default="auto")
+    """How the recursions in time run: ``"scan"``, ``"parallel"`` or ``"auto"`` (:func:`jaxheli.sim.forms.choose_form`:
+    the blocked kernel's block starts and the estimated runs' recursions; the plain scan simulator always scans)."""
 
     @property
     def restart_samples(self) -> int:
@@ -89,12 +93,16 @@ class Simulator(eqx.Module):
             np.asarray(self.measured_mask),
             self.reset == "carry",
             output_indices(self.outputs),
-            self.plan(),
+            self.plan(thetas.shape[0]),
         )
 
-    def plan(self) -> Plan:
-        """Layout of the blocks (blocked method only)."""
-        return make_plan(self.inputs.shape[0], self.block, self.segment_samples, self.hold)
+    def plan(self, candidates: int = 1) -> Plan:
+        """Layout of the blocks (blocked method only), its block starts in the form :attr:`time_form` resolves to
+        for ``candidates`` at once."""
+        plan = make_plan(self.inputs.shape[0], self.block, self.segment_samples, self.hold)
+        form = choose_form("population", plan.n_blocks, self.time_form,
+                           elements=plan.n_blocks * N_STATES * N_STATES * candidates)
+        return plan._replace(parallel=form == "parallel")
 
     def initial_states(self, count: int, dtype) -> Float[Array, "13 P"]:
         """``x0`` for ``count`` candidates, population last."""
@@ -156,8 +164,10 @@ class Simulator(eqx.Module):
         reset: Reset = "carry",
         method: SimMethod = "auto",
         block: int | None = None,
+        time_form: TimeForm | None = None,
     ) -> Simulator:
-        """The same flight under other settings (those of :func:`make_simulator`; ``outputs`` are state names)."""
+        """The same flight under other settings (those of :func:`make_simulator`; ``outputs`` are state names;
+        ``time_form`` ``None`` keeps the simulator's)."""
         if hold not in ("zoh", "foh"):
             raise ValueError(f"hold must be 'zoh' or 'foh', got {hold!r}")
         if reset not in ("carry", "zero"):
@@ -177,6 +187,9 @@ class Simulator(eqx.Module):
             seg = int(round(segment / self.dt))
             if seg < 1:
                 raise ValueError(f"segment must be at least one sample ({self.dt} s), got {segment} s")
+        time_form = self.time_form if time_form is None else time_form
+        if time_form not in FORMS:
+            raise ValueError(f"time_form must be one of {FORMS}, got {time_form!r}")
         if method not in ("auto", "scan", "blocked"):
             raise ValueError(f"method must be 'auto', 'scan' or 'blocked', got {method!r}")
         if method == "blocked" and initial == "estimated":
@@ -199,6 +212,7 @@ class Simulator(eqx.Module):
         return dataclasses.replace(
             self, x0=x0_arr, outputs=tuple(outputs), g=float(g), hold=hold, initial=initial, segment_samples=runs[1],
             reset=reset, method=method, block=L, run_samples=jnp.asarray(runs[0]), max_runs=runs[2],
+            time_form=time_form,
         )
 
     def describe(self) -> dict[str, object]:
@@ -248,6 +262,8 @@ def make_simulator(
                 ``"auto"``: blocked whenever a block length fits the segment length, else scan.
             block: block length in samples for the blocked method (default: chosen by
                 :func:`jaxheli.sim.blocked.choose_block`); must divide the segment length.
+            time_form: ``"auto"`` (default), ``"scan"`` or ``"parallel"``: how the recursions in time run
+                (:mod:`jaxheli.sim.forms`); equal up to rounding.
     """
     names = tuple(flight.output_names if outputs is None else outputs)
     missing = [c for c in names if c not in flight.output_names]
