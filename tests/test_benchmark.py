@@ -87,7 +87,7 @@ def test_gpu_script_steps_are_valid_commands(sizes):
     steps = getattr(gpu, sizes)
     assert set(steps) == set(gpu.CAPS) - {"install"}
     for name, arguments in steps.items():
-        command = (["identify", *arguments, "--quiet"] if name == "main-job" else
+        command = (["identify", *arguments, "--quiet"] if name.startswith("main-job") else
                    ["bench", *gpu.QUIET_BENCH, *arguments] if name != "throughput" else ["bench", *arguments])
         args = build_parser().parse_args(command + ["--out", "x"])
         assert args.func is not None
