@@ -22,6 +22,7 @@ Steps, in order of priority (a step starts only while the budget has at least ``
 5. ``time-to-model``: IWO (100 generations) + polish from a fresh process, parallel form and scan.
 6. ``throughput``: the throughput rows of ``jaxheli bench`` (plain scan against the blocked kernel) over the same P
    and N, seconds per IWO generation.
+7. ``main-job-scan``: the main job again with ``JAXHELI_TIME_FORM=scan``, for the speed-up of the parallel form.
 
 ``gpu.json`` in the output folder (rewritten after every step) holds each step's command, status, seconds and
 output folder, the environment (devices, versions), and the headline figures: the selected table, the experiment's
@@ -61,6 +62,7 @@ FULL = {
     "time-to-model": ["--samples", "8590", "--model-methods", "iwo+polish", "--model-iterations", "100"],
     "throughput": ["--sizes", "40", "400", "4000", "--samples", "1000", "8590", "40000", "--generations", "3",
                    "--repeats", "3"],
+    "main-job-scan": ["--data", "default", "--iterations", "100"],
 }
 TINY = {
     "forms": ["--samples", "300", "--form-samples", "300", "--form-sizes", "16", "--repeats", "1"],
@@ -70,8 +72,11 @@ TINY = {
     "time-to-model": ["--samples", "300", "--model-methods", "iwo+polish", "--model-iterations", "3",
                       "--data", "default:0-3"],
     "throughput": ["--sizes", "16", "--samples", "300", "--generations", "1", "--repeats", "1"],
+    "main-job-scan": ["--data", "default:0-5", "--iterations", "3", "--polish-steps", "2", "--polish-rounds", "1",
+                      "--freq-starts", "1", "--freq-steps", "2"],
 }
-CAPS = {"install": 150, "forms": 100, "experiment": 110, "main-job": 90, "time-to-model": 100, "throughput": 80}
+CAPS = {"install": 150, "forms": 100, "experiment": 110, "main-job": 90, "time-to-model": 100, "throughput": 80,
+        "main-job-scan": 90}
 """Each step's own timeout (s); the budget left cuts it shorter."""
 
 # every bench step but `throughput` skips what the others measure
@@ -184,9 +189,10 @@ def headline(out: Path, summary: dict) -> dict:
     if model.is_file():
         found["time_to_model_s"] = {f"{r['method']} {r['time_form']}": round(r["seconds"], 2)
                                     for r in json.loads(model.read_text()).get("time_to_model", [])}
-    main = next((s for s in summary["steps"] if s["name"] == "main-job"), None)
-    if main:
-        found["main_job_s"] = main["seconds"] if main["status"] == "ok" else main["status"]
+    for name in ("main-job", "main-job-scan"):
+        main = next((s for s in summary["steps"] if s["name"] == name and "seconds" in s), None)
+        if main:
+            found[f"{name.replace('-', '_')}_s"] = main["seconds"] if main["status"] == "ok" else main["status"]
     return found
 
 
@@ -246,12 +252,15 @@ def main(argv: list[str] | None = None) -> int:
     save()
 
     env = {**os.environ, "XLA_PYTHON_CLIENT_PREALLOCATE": "false", "PYTHONPATH": str(ROOT)}
+    env.pop("JAXHELI_TIME_FORM", None)  # each step's forms are its own (auto unless it says)
     sizes = TINY if args.tiny else FULL
     commands = {
         "forms": bench(python, "forms", sizes, out, []),
         "experiment": bench(python, "experiment", sizes, out, ["--forms", "parallel", "scan"]),
         "main-job": [python, "-m", "jaxheli", "identify", *sizes["main-job"], "--quiet", "--out",
                      str(out / "main-job")],
+        "main-job-scan": [python, "-m", "jaxheli", "identify", *sizes["main-job-scan"], "--quiet", "--out",
+                          str(out / "main-job-scan")],
         "time-to-model": bench(python, "time-to-model", sizes, out, ["--forms", "parallel", "scan"]),
         "throughput": [python, "-m", "jaxheli", "bench", "--dtypes", "float32", "--experiment-iterations", "0",
                        "--model-methods", "--no-costs", "--form-samples", "--host-devices", "1", "--quiet",
@@ -265,8 +274,9 @@ def main(argv: list[str] | None = None) -> int:
             save()
             continue
         print(f"gpu.py: {name} (at most {min(caps[name], left - 5):.0f} s)", flush=True)
+        step_env = {**env, "JAXHELI_TIME_FORM": "scan"} if name == "main-job-scan" else env
         summary["steps"].append({"name": name, **run(commands[name], min(caps[name], left - 5), out / f"{name}.log",
-                                                      env)})
+                                                      step_env)})
         print(f"gpu.py: {name} {summary['steps'][-1]['status']} in {summary['steps'][-1]['seconds']} s", flush=True)
         save()
     print(json.dumps(summary["headline"], indent=2))

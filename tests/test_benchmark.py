@@ -1,15 +1,21 @@
 """``jaxheli bench``: its NumPy baseline agrees with the library's cost, and a quick run writes its files."""
 
+import importlib.util
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
+import pytest
 
 from jaxheli.benchmark.baseline import numpy_cost
 from jaxheli.benchmark.throughput import bench_flight, candidates, flops_per_candidate
+from jaxheli.cli import build_parser
 from jaxheli.model import TABLE2
 from jaxheli.sim.population import population_cost
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_numpy_baseline_is_the_same_cost():
@@ -58,3 +64,30 @@ def test_quick_bench_writes_json_markdown_and_plot(tmp_path):
     assert "Each method in a fresh process" in text
     assert "Costs the engines minimise" in text
     assert (tmp_path / "throughput.png").stat().st_size > 10_000
+    forms = result["time_forms"]  # the plain scan against the parallel form in time, and the table they select
+    rows = {(r["path"], r["N"], r["steps"]) for r in forms["rows"]}
+    assert rows == {("population", 300, 18), ("recursion", 300, 299)}
+    assert all(r["scan_s"] > 0 and r["parallel_s"] > 0 and r["difference"] < 1e-4 for r in forms["rows"])
+    assert set(forms["selection"]) == {"cpu"} and set(forms["selection"]["cpu"]) == {"population", "recursion"}
+    assert experiment["time_form"] == "auto" and experiment["resolved_form"] == "scan"  # the table's CPU row
+    assert iwo_row["time_form"] == "auto" and "plain scan against the parallel form" in text
+
+
+def _gpu_script():
+    spec = importlib.util.spec_from_file_location("gpu_script", ROOT / "benchmarks" / "gpu.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("sizes", ["FULL", "TINY"])
+def test_gpu_script_steps_are_valid_commands(sizes):
+    """Every command benchmarks/gpu.py runs parses with jaxheli's own parser (a typo would cost a GPU run)."""
+    gpu = _gpu_script()
+    steps = getattr(gpu, sizes)
+    assert set(steps) == set(gpu.CAPS) - {"install"}
+    for name, arguments in steps.items():
+        command = (["identify", *arguments, "--quiet"] if name.startswith("main-job") else
+                   ["bench", *gpu.QUIET_BENCH, *arguments] if name != "throughput" else ["bench", *arguments])
+        args = build_parser().parse_args(command + ["--out", "x"])
+        assert args.func is not None
