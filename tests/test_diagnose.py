@@ -89,6 +89,7 @@ def test_injected_delay_is_diagnosed_and_reported(delayed):
     est = top["params"]["delay_lon"]
     assert abs(est["value"] - DELAY) < max(4 * est["stderr"], 0.005)
     assert d["verdict"].startswith("input_delay")
+    assert d["headline"].startswith("lon input delay") and "the validation gap shrinks" in d["headline"]
     assert d["flights"]["validate"]["samples"] == validate.n_samples
     assert d["outputs"] == list(OUT)
 
@@ -129,6 +130,7 @@ def test_clean_flight_gives_no_significant_effect():
     d = diagnose(TABLE2, _flight(0.0, 3, 0.2), _flight(0.0, 4, 0.25), **OPTIONS).to_json()
     assert json.loads(json.dumps(d, allow_nan=False)) == d  # plain, strict JSON
     assert d["verdict"] == "no significant effect"
+    assert d["headline"] == "no significant effect"  # nothing in the data check either
     assert not any(e["significant"] for e in d["ranking"])
     assert d["combination"] is None and d["gap_after"]["combination"] is None and d["final"] is None
     assert abs(d["ranking"][0]["shrink_pct"]) < 10
@@ -258,6 +260,7 @@ def test_the_command_line_reports_every_stage_and_quiet_only_the_result(delayed,
         assert any(text in line for line in lines), (text, err)
     assert silence < SILENCE_S, err
     assert "verdict: input_delay" in out
+    assert out.index("found: lon input delay") < out.index("verdict: input_delay")  # the words before the table
     quiet_out, quiet_err, _ = console_run([*argv, "--out", str(tmp_path / "quiet"), "--quiet"])
     assert quiet_err == ""
     assert quiet_out == out.replace(str(folder), str(tmp_path / "quiet"))  # the same result

@@ -129,6 +129,7 @@ def test_default_method_polishes_iwo_alone_when_no_pair_is_coherent():
                                                   pytest.approx(result.polish["objective_after"])]]
 
 
+@pytest.mark.filterwarnings("ignore:identify. the best trial.s least-squares fit stopped:UserWarning")  # not under test here
 def test_a_problem_with_conflicting_flight_settings_is_refused():
     """A Problem's settings replace identify's flight settings: one given otherwise is a one-line error naming
     it; the same value as the problem's, or the default, is no conflict."""
@@ -145,6 +146,7 @@ def test_a_problem_with_conflicting_flight_settings_is_refused():
     assert tuple(result.settings["outputs"]) == ("p", "q") and result.settings["segment"] == 2.0
 
 
+@pytest.mark.filterwarnings("ignore:identify. the best trial.s least-squares fit stopped:UserWarning")  # not under test here
 def test_the_result_records_the_box_it_searched_and_flags_its_bounds_against_it():
     """A box other than the authors' is recorded in the result's settings, and a parameter on that box's bound is
     flagged against it (not against the authors' box)."""

@@ -216,6 +216,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     print(f"diagnosis of {args.model}: trained on {train.source}, validated on {validate.source} "
           f"(step {steps} s, segment {args.segment:g} s, restart {args.restart}, restart filter level "
           f"{found.track:g}; channels {','.join(diagnosis.outputs)})")
+    print(f"found: {diagnosis.headline}")
     for line in ranking_table(diagnosis):
         print(line)
     print(f"verdict: {verdict_line(found.verdict)}")

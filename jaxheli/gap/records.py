@@ -18,6 +18,7 @@ from ._record import _Flat, _json, _maybe, _read
 from .candidate_records import Entry as Entry, Final as Final, LRTest as LRTest, Refit as Refit
 from .candidate_records import Structure as Structure
 from ..data.flight import FlightData
+from .headline import headline
 from .localisation_record import Localisation
 from .verdict import Verdict, find
 
@@ -123,14 +124,21 @@ class Diagnosis:
     restart: str = "filter"
     validated: FlightData | None = dataclasses.field(default=None, compare=False, repr=False)
 
+    @property
+    def headline(self) -> str:
+        """The first line in words (:func:`~jaxheli.gap.headline.headline`): the significant consistency findings,
+        then what was found, or where an unexplained gap lies."""
+        return headline(self.attribution.verdict, self.consistency, self.localisation.summary)
+
     def to_json(self) -> dict[str, Any]:
         """``diagnosis.json``: strict JSON values (:func:`~jaxheli._json.json_ready`), ``gap_after`` holding the
-        shown entries' gaps under ``best`` and ``combination``, each with its ``effect``."""
+        shown entries' gaps under ``best`` and ``combination``, each with its ``effect``, and the :attr:`headline`."""
         gaps = (self.gap_best, self.gap_combination)
         after = [{"effect": e.effect, **g.to_json()} for e, g in zip(self.attribution.shown, gaps)]
         train = {} if self.localisation_train is None else {"train": self.localisation_train.to_json()}
         return json_ready({
             "model": self.model,
+            "headline": self.headline,
             "flights": {role: f.to_json() for role, f in self.flights.items()},
             "outputs": list(self.outputs),
             "segment_s": self.segment_s,

@@ -287,6 +287,8 @@ def diagnosis(diag: DiagnosisSource | None, results: Sequence[ResultSource]) -> 
             tag("code", "jaxheli report ... --diagnosis DIR"), "."))
     content = diag.content or {}
     body: list[Any] = [tag("p", "From ", tag("code", str(diag.path)), ".")]
+    if content.get("headline"):
+        body.append(tag("p", tag("b", "Found: "), content["headline"]))
     if content.get("verdict"):
         body.append(tag("p", tag("b", "Verdict: "), content["verdict"]))
     if diag.content is not None:

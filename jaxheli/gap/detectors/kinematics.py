@@ -103,8 +103,8 @@ def _fit_axis(
     """Lag by :func:`~.._lag.fit_lag`, least squares for the rest:
     ``angle' = s (c rate(t + tau) + e - c b - c d t')``."""
     tc = t - 0.5 * (t[0] + t[-1])
-    lag = fit_lag(t, np.gradient(angle, dt), rate, [c, c * tc], max_lag=MAX_LAG_S, edge=EDGE_S,
-                  bandwidth=int(1.0 / (cutoff * dt)), weight=c, offset=e)
+    lag = fit_lag(t, np.gradient(angle, dt), simpson(rate), [c, c * tc], max_lag=MAX_LAG_S, edge=EDGE_S,
+                  bandwidth=int(1.0 / (cutoff * dt)), weight=c, offset=simpson(e))
     if lag is None:
         return None
     fit = lag.fit
@@ -113,6 +113,17 @@ def _fit_axis(
     values = {"s": float(fit.beta[0]), "tau": lag.tau, "b": b, "d": d}
     sigmas = {"s": float(fit.se[0]), "tau": lag.sigma, "b": sig_b, "d": sig_d}
     return values, sigmas, lag.converged
+
+
+def simpson(x: Float[np.ndarray, "N"]) -> Float[np.ndarray, "N"]:
+    """``x`` averaged as Simpson's rule averages it over two steps, ``(x[k-1] + 4 x[k] + x[k+1]) / 6`` (the ends
+    kept): the central difference of the angle (``np.gradient``) is the two-step mean of its rate, so the rate is
+    compared in the same form. Unmatched, the difference's gain ``sin(w dt) / (w dt)`` reads as a time-scale
+    error: 1.03-1.10 on a perfectly clocked 20-Hz flight whose attitude moves at 1-3 Hz; matched, the two gains
+    agree to ``(w dt)^4 / 180`` (0.1 % at 2 Hz and 20 Hz)."""
+    out = np.array(x, dtype=float)
+    out[1:-1] = (x[:-2] + 4.0 * x[1:-1] + x[2:]) / 6.0
+    return out
 
 
 def axis_findings(fits: list[_AxisFit], flight: FlightData) -> list[Finding]:

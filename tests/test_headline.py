@@ -1,0 +1,64 @@
+"""The diagnosis's first line: consistency findings first, then the effect with its size and shrink, then the base
+model's shortfalls; where an unexplained, stick-driven gap lies instead of "no significant effect"; no parameter
+lists."""
+
+import pytest
+
+from jaxheli.gap.headline import NO_EFFECT, headline
+from jaxheli.gap.localisation_record import LagPair, Summary
+from jaxheli.gap.verdict import find
+
+from test_verdict import _cases
+
+
+def _where(coherent: bool = True, lagged: bool = True) -> Summary:
+    """A localisation summary: q's worst band 0.5-2 Hz holds 64 % of its gap, coherent with the sticks or noise-like;
+    q lagging lon by 40 ms, significant or not."""
+    lag = LagPair("lon", "q", 0.04, 0.3, 0.1 if lagged else 0.5, lagged, ())
+    return Summary("q", 0.12, (0.5, 2.0), 0.64, "structure" if coherent else "noise", (10.0, 20.0), 0.3, False, lag)
+
+
+FINDINGS = (
+    {"flight": "train", "significant": True, "message": "p reads 1.18 +- 0.004 times the rate implied by dphi/dt."},
+    {"flight": "validate", "significant": False, "message": "time base consistent."},
+    {"flight": "validate", "significant": True, "message": "the log's clock runs 3.1 +- 0.2 % fast"},
+)
+
+
+def test_significant_findings_of_either_flight_come_first_and_the_effect_follows_in_words():
+    line = headline(find(*_cases()["under_fitted_then_effect"]), FINDINGS, _where())
+    assert line == ("train flight: p reads 1.18 +- 0.004 times the rate implied by dphi/dt; validate flight: the log's "
+                    "clock runs 3.1 +- 0.2 % fast; lat input delay delay 80 +- 5 ms: the validation gap shrinks 40 %; "
+                    "the base model under-fitted: re-fitted alone it shrinks the gap 12 %")
+
+
+def test_the_effect_beyond_a_named_structure_leads_and_no_parameter_list_follows():
+    line = headline(find(*_cases()["structure_then_effect"]), (), _where())
+    assert line.startswith("lat input delay delay 80 +- 5 ms: the validation gap shrinks 22 % beyond the base "
+                           "model's structure; the base model's structure: re-fitted in the physical ranges it "
+                           "shrinks the gap 45 %")
+    assert "Nw" not in line and "Xu" not in line
+    assert "tied with actuator_lag" in headline(find(*_cases()["effect_tied"]), (), _where())
+
+
+@pytest.mark.parametrize("coherent, lagged", [(True, True), (True, False), (False, True)])
+def test_a_stick_driven_gap_no_effect_explains_is_located(coherent, lagged):
+    line = headline(find(*_cases()["nothing"]), (), _where(coherent, lagged))
+    assert line.startswith("no catalogued effect explains the base model's gap, which lies in q at 0.5-2 Hz "
+                           "(64 % of its gap)")
+    assert line.endswith(", q lagging lon by 40 ms") == lagged
+    rest = headline(find(*_cases()["structure_only"]), (), _where(coherent, lagged))
+    assert rest.startswith("the base model's structure: re-fitted in the physical ranges it shrinks the gap 45 %; "
+                           "no catalogued effect explains the rest, which lies in q")
+
+
+def test_a_noise_like_gap_with_nothing_found_is_no_significant_effect():
+    assert headline(find(*_cases()["nothing"]), FINDINGS[1:2], _where(False, False)) == NO_EFFECT
+    assert headline(find(*_cases()["nothing"]), FINDINGS[:1], _where(False, False)).endswith("; " + NO_EFFECT)
+
+
+def test_a_base_still_converging_attributes_nothing():
+    for name in ("unsettled", "unsettled_not_under"):
+        line = headline(find(*_cases()[name]), (), _where())
+        assert line == ("the base model is still converging (training RSS down 3.2 % over its last 60 steps): no "
+                        "effect attributed"), name
