@@ -19,13 +19,17 @@ def _where(coherent: bool = True, lagged: bool = True) -> Summary:
 
 
 FINDINGS = (
-    {"flight": "train", "significant": True, "message": "p reads 1.18 +- 0.004 times the rate implied by dphi/dt."},
-    {"flight": "validate", "significant": False, "message": "time base consistent."},
-    {"flight": "validate", "significant": True, "message": "the log's clock runs 3.1 +- 0.2 % fast"},
+    {"flight": "train", "kind": "rate_scale", "significant": True,
+     "message": "p reads 1.18 +- 0.004 times the rate implied by dphi/dt."},
+    {"flight": "validate", "kind": "time_scale", "significant": False, "message": "time base consistent."},
+    {"flight": "validate", "kind": "velocity_lag", "significant": True, "message": "w lags by 178 ms: look at it"},
+    {"flight": "validate", "kind": "time_scale", "significant": True, "message": "the log's clock runs 3.1 +- 0.2 % fast"},
 )
 
 
-def test_significant_findings_of_either_flight_come_first_and_the_effect_follows_in_words():
+def test_significant_defects_of_either_flight_come_first_and_the_effect_follows_in_words():
+    """A significant finding the correction would apply leads; one that only asks for a look (a velocity lag) and
+    an insignificant one stay out."""
     line = headline(find(*_cases()["under_fitted_then_effect"]), FINDINGS, _where())
     assert line == ("train flight: p reads 1.18 +- 0.004 times the rate implied by dphi/dt; validate flight: the log's "
                     "clock runs 3.1 +- 0.2 % fast; lat input delay delay 80 +- 5 ms: the validation gap shrinks 40 %; "
@@ -53,7 +57,7 @@ def test_a_stick_driven_gap_no_effect_explains_is_located(coherent, lagged):
 
 
 def test_a_noise_like_gap_with_nothing_found_is_no_significant_effect():
-    assert headline(find(*_cases()["nothing"]), FINDINGS[1:2], _where(False, False)) == NO_EFFECT
+    assert headline(find(*_cases()["nothing"]), FINDINGS[1:3], _where(False, False)) == NO_EFFECT
     assert headline(find(*_cases()["nothing"]), FINDINGS[:1], _where(False, False)).endswith("; " + NO_EFFECT)
 
 

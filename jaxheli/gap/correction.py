@@ -9,15 +9,16 @@ from ..data.preprocess import _step
 from ._finding import Finding, plain
 from .detectors.velocity_frame import applied_scale, frame_matrix
 
-_ORDER = ("time_scale", "rate_scale", "kinematic_lag", "rate_bias", "rate_drift", "velocity_frame", "velocity_scale",
-          "attitude_bias", "attitude_drift")
-"""The order in which :func:`correct` applies findings (the stage order of :func:`~.consistency.check`)."""
+CORRECTED: tuple[str, ...] = ("time_scale", "rate_scale", "kinematic_lag", "rate_bias", "rate_drift",
+                               "velocity_frame", "velocity_scale", "attitude_bias", "attitude_drift")
+"""The kinds of finding :func:`correct` applies, in the order it applies them (the stage order of
+:func:`~.consistency.check`)."""
 
 
 def correct(flight: FlightData, findings: list[Finding]) -> FlightData:
     """Apply the significant findings to ``flight`` and log them in ``metadata["preprocessing"]``.
 
-    Order (:data:`_ORDER`, that of :func:`~.consistency.check`): time base, gyro scale, rate lag, rate bias and drift,
+    Order (:data:`CORRECTED`, that of :func:`~.consistency.check`): time base, gyro scale, rate lag, rate bias and drift,
     velocity frame or scale, attitude bias and drift. Velocity scales are undone in sign always and in
     magnitude only where significant. Velocity lags, biases and drifts are reported, never applied: the
     rotor's flapping lag and a real translation look the same.
@@ -32,7 +33,7 @@ def correct(flight: FlightData, findings: list[Finding]) -> FlightData:
                                   f"which the flight lacks (has {names})")
         return names.index(name)
 
-    for f in sorted((f for f in findings if f.significant and f.kind in _ORDER), key=lambda f: _ORDER.index(f.kind)):
+    for f in sorted((f for f in findings if f.significant and f.kind in CORRECTED), key=lambda f: CORRECTED.index(f.kind)):
         kind, est = f.kind, f.estimate
         if kind == "time_scale":
             time = time[0] + (time - time[0]) / est

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from .correction import CORRECTED
 from .localisation_record import Summary
 from .verdict import Verdict
 
@@ -17,8 +18,11 @@ NO_EFFECT = "no significant effect"
 
 
 def headline(verdict: Verdict, consistency: Sequence[Mapping[str, Any]], where: Summary) -> str:
-    """One line: ``consistency``'s significant findings (JSON, with their ``flight``), then :func:`found`."""
-    data = [f"{f['flight']} flight: {f['message'].rstrip('.')}" for f in consistency if f.get("significant")]
+    """One line: ``consistency``'s significant findings of the kinds the correction applies (JSON, with their
+    ``flight``; :data:`~jaxheli.gap.correction.CORRECTED`: a time base, a gyro scale or lag, a bias, a frame), then
+    :func:`found`. Those that only ask for a look (a velocity's lag or drift) stay in ``consistency.json``."""
+    data = [f"{f['flight']} flight: {f['message'].rstrip('.')}" for f in consistency
+            if f.get("significant") and f.get("kind") in CORRECTED]
     return "; ".join([*data, found(verdict, where)])
 
 
