@@ -19,11 +19,11 @@ def _where(coherent: bool = True, lagged: bool = True) -> Summary:
 
 
 FINDINGS = (
-    {"flight": "train", "kind": "rate_scale", "significant": True,
-     "message": "p reads 1.18 +- 0.004 times the rate implied by dphi/dt."},
-    {"flight": "validate", "kind": "time_scale", "significant": False, "message": "time base consistent."},
-    {"flight": "validate", "kind": "velocity_lag", "significant": True, "message": "w lags by 178 ms: look at it"},
-    {"flight": "validate", "kind": "time_scale", "significant": True, "message": "the log's clock runs 3.1 +- 0.2 % fast"},
+    {"flight": "train", "kind": "rate_scale", "channels": ["p"], "estimate": 1.18, "significant": True},
+    {"flight": "validate", "kind": "time_scale", "channels": ["time"], "estimate": 1.001, "significant": False},
+    {"flight": "validate", "kind": "velocity_lag", "channels": ["w", "phi"], "estimate": -0.178, "significant": True},
+    {"flight": "validate", "kind": "time_scale", "channels": ["time"], "estimate": 1.031, "significant": True},
+    {"flight": "train", "kind": "attitude_bias", "channels": ["phi"], "estimate": 0.10, "significant": True},
 )
 
 
@@ -31,9 +31,9 @@ def test_significant_defects_of_either_flight_come_first_and_the_effect_follows_
     """A significant finding the correction would apply leads; one that only asks for a look (a velocity lag) and
     an insignificant one stay out."""
     line = headline(find(*_cases()["under_fitted_then_effect"]), FINDINGS, _where())
-    assert line == ("train flight: p reads 1.18 +- 0.004 times the rate implied by dphi/dt; validate flight: the log's "
-                    "clock runs 3.1 +- 0.2 % fast; lat input delay delay 80 +- 5 ms: the validation gap shrinks 40 %; "
-                    "the base model under-fitted: re-fitted alone it shrinks the gap 12 %")
+    assert line == ("train flight data: rate scale x1.18 of p, attitude bias of phi; validate flight data: time scale "
+                    "x1.03; lat input delay delay 80 +- 5 ms: the validation gap shrinks 40 %; the base model "
+                    "under-fitted: re-fitted alone it shrinks the gap 12 %")
 
 
 def test_the_effect_beyond_a_named_structure_leads_and_no_parameter_list_follows():

@@ -19,11 +19,29 @@ NO_EFFECT = "no significant effect"
 
 def headline(verdict: Verdict, consistency: Sequence[Mapping[str, Any]], where: Summary) -> str:
     """One line: ``consistency``'s significant findings of the kinds the correction applies (JSON, with their
-    ``flight``; :data:`~jaxheli.gap.correction.CORRECTED`: a time base, a gyro scale or lag, a bias, a frame), then
-    :func:`found`. Those that only ask for a look (a velocity's lag or drift) stay in ``consistency.json``."""
-    data = [f"{f['flight']} flight: {f['message'].rstrip('.')}" for f in consistency
-            if f.get("significant") and f.get("kind") in CORRECTED]
-    return "; ".join([*data, found(verdict, where)])
+    ``flight``; :data:`~jaxheli.gap.correction.CORRECTED`: a time base, a gyro scale or lag, a bias, a frame), named
+    per flight (:func:`defects`; their numbers are in ``consistency.json``), then :func:`found`. Those that only ask
+    for a look (a velocity's lag or drift) stay in ``consistency.json``."""
+    return "; ".join([*defects(consistency), found(verdict, where)])
+
+
+def defects(consistency: Sequence[Mapping[str, Any]]) -> list[str]:
+    """``["train flight data: time scale x1.246, attitude bias of phi", ...]``: per flight, the significant findings
+    the correction applies, by kind and channels, a scale factor with its value."""
+    named: dict[str, list[str]] = {}
+    for f in consistency:
+        if f.get("significant") and f.get("kind") in CORRECTED:
+            what = f["kind"].replace("_", " ")
+            est = f.get("estimate")
+            if f["kind"] in _SCALES and isinstance(est, (int, float)):
+                what += f" x{est:.3g}"
+            channels = [c for c in f.get("channels", ()) if c != "time"]
+            named.setdefault(f["flight"], []).append(what + (f" of {','.join(channels)}" if channels else ""))
+    return [f"{flight} flight data: {', '.join(found)}" for flight, found in named.items()]
+
+
+_SCALES = ("time_scale", "rate_scale", "velocity_scale")
+"""Kinds whose estimate is a dimensionless scale factor, shown in the headline."""
 
 
 def found(verdict: Verdict, where: Summary) -> str:
