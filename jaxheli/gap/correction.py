@@ -18,8 +18,8 @@ CORRECTED: tuple[str, ...] = ("time_scale", "rate_scale", "kinematic_lag", "rate
 def correct(flight: FlightData, findings: list[Finding]) -> FlightData:
     """Apply the significant findings to ``flight`` and log them in ``metadata["preprocessing"]``.
 
-    Order (:data:`CORRECTED`, that of :func:`~.consistency.check`): time base, gyro scale, rate lag, rate bias and drift,
-    velocity frame or scale, attitude bias and drift. Velocity scales are undone in sign always and in
+    Order (:data:`CORRECTED`, that of :func:`~.consistency.check`): time base, gyro scale, rate lag, rate bias and
+    drift, velocity frame or scale, attitude bias and drift. Velocity scales are undone in sign always and in
     magnitude only where significant. Velocity lags, biases and drifts are reported, never applied: the
     rotor's flapping lag and a real translation look the same.
     """
@@ -33,7 +33,8 @@ def correct(flight: FlightData, findings: list[Finding]) -> FlightData:
                                   f"which the flight lacks (has {names})")
         return names.index(name)
 
-    for f in sorted((f for f in findings if f.significant and f.kind in CORRECTED), key=lambda f: CORRECTED.index(f.kind)):
+    applies = (f for f in findings if f.significant and f.kind in CORRECTED)
+    for f in sorted(applies, key=lambda f: CORRECTED.index(f.kind)):
         kind, est = f.kind, f.estimate
         if kind == "time_scale":
             time = time[0] + (time - time[0]) / est
