@@ -28,16 +28,23 @@ simulation), where compiling is most of the time: without XLA CPU's fusion emitt
 as fast and its loops run a little slower. The population kernel, run thousands of times, keeps them. XLA CPU's own:
 other backends refuse them, so programs take them through :func:`quick_jit`."""
 
+SOLVE_OFTEN = {**QUICK_COMPILE, "xla_backend_optimization_level": 3}
+"""``compiler_options`` of a compiled solve that runs tens of times per process (the diagnosis's row fit: a
+forward-mode Jacobian of the predictor at every step): LLVM's optimisations kept even where ``XLA_FLAGS`` lowers
+them for compile speed, as the test suite does: unoptimised, its Jacobian runs slower by more than the compile saves.
+Level 3 is XLA's default, so elsewhere this changes nothing."""
 
-def quick_jit(fun: Callable[..., Any], jit: Callable[..., Any] | None = None, **kwargs: Any) -> Callable[..., Any]:
-    """``jit(fun, **kwargs)`` (default ``equinox.filter_jit``) compiled with :data:`QUICK_COMPILE` where JAX's default
-    backend is the CPU and with XLA's defaults elsewhere: a GPU backend stops at an option it does not know ("No such
-    compile option")."""
+
+def quick_jit(fun: Callable[..., Any], jit: Callable[..., Any] | None = None,
+              options: dict[str, Any] = QUICK_COMPILE, **kwargs: Any) -> Callable[..., Any]:
+    """``jit(fun, **kwargs)`` (default ``equinox.filter_jit``) compiled with ``options`` (:data:`QUICK_COMPILE` or
+    :data:`SOLVE_OFTEN`) where JAX's default backend is the CPU and with XLA's defaults elsewhere: a GPU backend stops
+    at an option it does not know ("No such compile option")."""
     import equinox as eqx
     import jax
 
     jit = eqx.filter_jit if jit is None else jit
-    quick, plain = jit(fun, compiler_options=QUICK_COMPILE, **kwargs), jit(fun, **kwargs)
+    quick, plain = jit(fun, compiler_options=options, **kwargs), jit(fun, **kwargs)
 
     @functools.wraps(fun)
     def call(*args: Any, **kw: Any) -> Any:

@@ -2,8 +2,9 @@
 :func:`jaxheli.optim.boxed_lm.boxed_least_squares`) run for each candidate row in turn. Not ``vmap``: vmapped, the
 solves, each a loop over forward-mode scans, can deadlock XLA CPU's runtime with every thread waiting. Not
 ``lax.map`` either: a step inside the map's loop is slower than run alone, and the mapped program compiles anew for
-every row count. The solve compiles with :data:`jaxheli._xla.QUICK_COMPILE`: it runs a few times per process, so
-compiling is most of its cost.
+every row count. Re-identified jointly, the solve compiles with :data:`jaxheli._xla.SOLVE_OFTEN`: a diagnosis runs it 40
+to 50 times, each step a Jacobian over the 40 base parameters too, so it keeps LLVM's optimisations; with the base
+frozen (a handful of unknowns) compiling is most of its cost (:data:`jaxheli._xla.QUICK_COMPILE`).
 
 Every candidate frees ``K`` entries of ``eta`` (``index[C, K]``, padded with a dummy slot), each in its
 physical box (:func:`jaxheli.effects.registry.box`), started at the effect's start values. With the base
@@ -31,7 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, Float, Int
-from .._xla import quick_jit, warn_if_unconfigured
+from .._xla import SOLVE_OFTEN, quick_jit, warn_if_unconfigured
 from ..bounds import Bounds
 from ..cost import nmse
 from ..effects import registry as fx
@@ -136,8 +137,9 @@ def fit_candidates(
     walk = _walk_slots(pred.outputs)
     base_walks = bool(np.any(np.asarray(base)[walk]))
     limit, bound = jnp.asarray(max_steps), step_bound(max_steps)
-    fits = [_fit_row(pred.for_walks(base_walks or np.isin(np.asarray(cand.index[i]), walk).any()), theta, base,
-                     *(r[i] for r in rows), limit, bound, theta_box) for i in range(rows[0].shape[0])]
+    fit_row = _frozen_row if theta_box is None else _joint_row
+    fits = [fit_row(pred.for_walks(base_walks or np.isin(np.asarray(cand.index[i]), walk).any()), theta, base,
+                    *(r[i] for r in rows), limit, bound, theta_box) for i in range(rows[0].shape[0])]
     return EffectFit(*(jnp.stack(parts) for parts in zip(*fits)))
 
 
@@ -147,7 +149,6 @@ def _walk_slots(outputs: tuple[str, ...]) -> Int[np.ndarray, "W"]:
     return np.arange(*layout(outputs)["walk"].indices(size(outputs)))
 
 
-@quick_jit
 def _fit_row(
     pred: Predictor,
     theta: Float[Array, "40"],
@@ -188,6 +189,10 @@ def _fit_row(
     th, z = split(u)
     k = z0.shape[0]
     return z, stderr[-k:], th, rss, res.shape[0] / colour, jnp.sum(active[-k:]), sol.num_steps, sol.successful
+
+
+_joint_row = quick_jit(_fit_row, options=SOLVE_OFTEN)
+_frozen_row = quick_jit(_fit_row)
 
 
 def _colour_factor(res: Float[Array, "N k"]) -> Float[Array, ""]:
