@@ -61,7 +61,7 @@ def final_fit(train: Predictor, validate: Predictor, entry: Entry, box: Bounds, 
     eta = np.r_[effect_eta(entry.effect, entry.fitted.params, outputs, entry.nuisance), 0.0]
     cand = dataclasses.replace(cand, start=jnp.clip(jnp.asarray(eta)[cand.index], cand.lower, cand.upper))
     fit = fit_candidates(Stacked((train, validate)), jnp.asarray(entry.theta), jnp.asarray(no_effect(outputs)), cand,
-                         max_steps, box)
+                         max_steps, box, once=True)
     value = np.asarray(fit.z[0])
     fitted = fx.report(entry.effect, outputs, value, np.asarray(fit.stderr[0]))
     return Final(entry.effect, fitted, float(fit.rss[0]), int(fit.steps[0]), np.asarray(fit.theta[0], np.float64),

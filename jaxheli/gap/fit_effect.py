@@ -2,9 +2,10 @@
 :func:`jaxheli.optim.boxed_lm.boxed_least_squares`) run for each candidate row in turn. Not ``vmap``: vmapped, the
 solves, each a loop over forward-mode scans, can deadlock XLA CPU's runtime with every thread waiting. Not
 ``lax.map`` either: a step inside the map's loop is slower than run alone, and the mapped program compiles anew for
-every row count. Re-identified jointly, the solve compiles with :data:`jaxheli._xla.SOLVE_OFTEN`: a diagnosis runs it 40
-to 50 times, each step a Jacobian over the 40 base parameters too, so it keeps LLVM's optimisations; with the base
-frozen (a handful of unknowns) compiling is most of its cost (:data:`jaxheli._xla.QUICK_COMPILE`).
+every row count. The row fits of a joint re-identification compile with :data:`jaxheli._xla.SOLVE_OFTEN`: a diagnosis
+runs that program 40 to 50 times, each step a Jacobian over the 40 base parameters too, so it keeps LLVM's
+optimisations. A program run once or a few times (the base frozen: a handful of unknowns; a row that walks the output
+biases, whose filter is larger; a fit on both flights) compiles quick (:data:`jaxheli._xla.QUICK_COMPILE`).
 
 Every candidate frees ``K`` entries of ``eta`` (``index[C, K]``, padded with a dummy slot), each in its
 physical box (:func:`jaxheli.effects.registry.box`), started at the effect's start values. With the base
@@ -128,18 +129,21 @@ def fit_candidates(
     cand: EffectRows,
     max_steps: int = MAX_STEPS,
     theta_box: Bounds | None = None,
+    once: bool = False,
 ) -> EffectFit:
     """Fit every candidate on ``pred``'s flight (one compiled LM solve, :func:`_fit_row`, run for each row in turn;
     ``max_steps`` is static); with ``theta_box`` the base parameters are re-identified jointly in that box (it must
-    contain ``theta``), else held at ``theta``."""
+    contain ``theta``), else held at ``theta``. ``once``: this program runs once in the process (compiled quick, see
+    the module)."""
     warn_if_unconfigured()
     rows = (cand.index, cand.start, cand.lower, cand.upper)
     walk = _walk_slots(pred.outputs)
     base_walks = bool(np.any(np.asarray(base)[walk]))
     limit, bound = jnp.asarray(max_steps), step_bound(max_steps)
-    fit_row = _frozen_row if theta_box is None else _joint_row
-    fits = [fit_row(pred.for_walks(base_walks or np.isin(np.asarray(cand.index[i]), walk).any()), theta, base,
-                    *(r[i] for r in rows), limit, bound, theta_box) for i in range(rows[0].shape[0])]
+    walks = [base_walks or bool(np.isin(np.asarray(cand.index[i]), walk).any()) for i in range(rows[0].shape[0])]
+    often = theta_box is not None and not once
+    fits = [(_optimised_row if often and not w else _quick_row)(pred.for_walks(w), theta, base, *(r[i] for r in rows),
+                                                                 limit, bound, theta_box) for i, w in enumerate(walks)]
     return EffectFit(*(jnp.stack(parts) for parts in zip(*fits)))
 
 
@@ -191,8 +195,8 @@ def _fit_row(
     return z, stderr[-k:], th, rss, res.shape[0] / colour, jnp.sum(active[-k:]), sol.num_steps, sol.successful
 
 
-_joint_row = quick_jit(_fit_row, options=SOLVE_OFTEN)
-_frozen_row = quick_jit(_fit_row)
+_optimised_row = quick_jit(_fit_row, options=SOLVE_OFTEN)
+_quick_row = quick_jit(_fit_row)
 
 
 def _colour_factor(res: Float[Array, "N k"]) -> Float[Array, ""]:
