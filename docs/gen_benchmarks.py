@@ -236,7 +236,23 @@ def render_truth_forms(rec: dict) -> str:
                                     "within the noise"], rows))
 
 
-RENDERERS = {"identify": render_identify, "verify": render_verify, "truth_forms": render_truth_forms}
+def render_suite_time(rec: dict) -> str:
+    """The suite of the tested commit against the reference's, run one after the other in clean clones on one
+    machine, and the tested commit's CI time estimated from the reference's."""
+    out = rec["output"]
+    rows = [[role, f"`{run['commit'][:10]}`", ", ".join(f"{n} {k}" for k, n in run["counts"].items()),
+             _num(run["pytest_s"], 4)] for role, run in (("reference", out["reference"]), ("tested", out["tested"]))]
+    text = (f"README's test command in clean clones, the reference first. Ratio tested / reference: "
+            f"**{_num(out['ratio'])}** (measured).")
+    if out.get("estimated_ci_s") is not None:
+        text += (f" The reference took {_num(out['reference_ci_s'], 4)} s in CI when the suite's limit was set; at "
+                 f"that machine's speed the tested suite would take **{_num(out['estimated_ci_s'], 4)} s** "
+                 "(estimated: the ratio times it).")
+    return text + "\n\n" + _table(["suite", "commit", "tests", "pytest (s)"], rows)
+
+
+RENDERERS = {"identify": render_identify, "verify": render_verify, "truth_forms": render_truth_forms,
+             "suite_time": render_suite_time}
 """How each kind of record is drawn; a new kind (e.g. ``bench.json``) needs its renderer here."""
 
 INTRO = """# Benchmarks
