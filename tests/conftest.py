@@ -8,6 +8,8 @@ import tempfile
 # them about 1.4x faster (tests/test_px4log_cli.py: 137 s -> 95 s) and leaves the arithmetic unchanged, and XLA
 # CPU's older loop emitters (the library's QUICK_COMPILE for its few-run programs, jaxheli/_xla.py) compile faster
 # again (tests/test_identify.py and tests/test_shooting.py: 264 s -> 207 s, one process, measured side by side).
+# The diagnosis's joint row fit, run tens of times per diagnosis, keeps level 3 by its own options
+# (jaxheli._xla.SOLVE_OFTEN): there the optimised code runs faster than level 0 compiles.
 _FLAGS = ["--xla_backend_optimization_level=0", "--xla_cpu_use_fusion_emitters=false"]
 # The scheduler setting the diagnosis's batched fits need (jaxheli.configure_xla, which the command line applies and
 # importing jaxheli does not), here before JAX is imported; the suite's subprocesses and worker pools inherit it.
