@@ -36,12 +36,13 @@ def _commit(ref: str) -> str:
                           check=True).stdout.strip()
 
 
-def _counts(text: str) -> dict[str, int]:
-    """pytest's closing line (``1129 passed, 2 failed in 1472.56s``) as ``{"passed": 1129, "failed": 2}``."""
+def _summary(text: str) -> tuple[dict[str, int], float]:
+    """pytest's closing line (``1129 passed, 2 failed in 1472.56s``) as ``({"passed": 1129, "failed": 2}, 1472.56)``."""
     found = _SUMMARY.findall(text)
     if not found:
         raise RuntimeError(f"no pytest summary line in the output's end:\n{text[-2000:]}")
-    return {kind: int(n) for n, kind in re.findall(r"(\d+) (\w+)", found[-1][0])}
+    counts, seconds = found[-1]
+    return {kind: int(n) for n, kind in re.findall(r"(\d+) (\w+)", counts)}, float(seconds)
 
 
 def run_suite(ref: str, work: Path, env: dict[str, str]) -> dict:
@@ -56,8 +57,8 @@ def run_suite(ref: str, work: Path, env: dict[str, str]) -> dict:
                           executable="/bin/bash")
     wall = time.perf_counter() - start
     (work / f"{commit[:12]}.log").write_text(done.stdout + done.stderr)
-    seconds = float(_SUMMARY.findall(done.stdout)[-1][1]) if _SUMMARY.search(done.stdout) else None
-    return {"commit": commit, "returncode": done.returncode, "counts": _counts(done.stdout), "pytest_s": seconds,
+    counts, seconds = _summary(done.stdout)
+    return {"commit": commit, "returncode": done.returncode, "counts": counts, "pytest_s": seconds,
             "wall_s": round(wall, 1)}
 
 

@@ -142,8 +142,9 @@ def fit_candidates(
     limit, bound = jnp.asarray(max_steps), step_bound(max_steps)
     walks = [base_walks or bool(np.isin(np.asarray(cand.index[i]), walk).any()) for i in range(rows[0].shape[0])]
     often = theta_box is not None and not once
-    fits = [(_optimised_row if often and not w else _quick_row)(pred.for_walks(w), theta, base, *(r[i] for r in rows),
-                                                                 limit, bound, theta_box) for i, w in enumerate(walks)]
+    programs = [_optimised_row if often and not w else _quick_row for w in walks]
+    fits = [fit(pred.for_walks(w), theta, base, *(r[i] for r in rows), limit, bound, theta_box)
+            for i, (fit, w) in enumerate(zip(programs, walks))]
     return EffectFit(*(jnp.stack(parts) for parts in zip(*fits)))
 
 

@@ -25,6 +25,10 @@ def headline(verdict: Verdict, consistency: Sequence[Mapping[str, Any]], where: 
     return "; ".join([*defects(consistency), found(verdict, where)])
 
 
+_SCALES = ("time_scale", "rate_scale", "velocity_scale")
+"""Kinds whose estimate is a dimensionless scale factor, shown in the headline."""
+
+
 def defects(consistency: Sequence[Mapping[str, Any]]) -> list[str]:
     """``["train flight data: time scale x1.246, attitude bias of phi", ...]``: per flight, the significant findings
     the correction applies, by kind and channels, a scale factor with its value."""
@@ -37,11 +41,7 @@ def defects(consistency: Sequence[Mapping[str, Any]]) -> list[str]:
                 what += f" x{est:.3g}"
             channels = [c for c in f.get("channels", ()) if c != "time"]
             named.setdefault(f["flight"], []).append(what + (f" of {','.join(channels)}" if channels else ""))
-    return [f"{flight} flight data: {', '.join(found)}" for flight, found in named.items()]
-
-
-_SCALES = ("time_scale", "rate_scale", "velocity_scale")
-"""Kinds whose estimate is a dimensionless scale factor, shown in the headline."""
+    return [f"{flight} flight data: {', '.join(kinds)}" for flight, kinds in named.items()]
 
 
 def found(verdict: Verdict, where: Summary) -> str:
