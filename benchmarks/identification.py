@@ -22,14 +22,24 @@ with the polish's last run length and stopping round chosen by leave-one-window-
 windows of the training record (:mod:`jaxheli.optim.cross_validate`), and (0) with its full schedule. ``--train``
 chooses the training records among all four: a validation record trained on and scored on itself gives the method's
 in-sample ceiling there (what no model trained elsewhere is expected to exceed with the same objective).
+``--recipes`` runs each method in each recipe (issue 66): ``default`` (the authors' box, :data:`jaxheli.model.LOWER`
+/ ``UPPER``, what ``jaxheli identify`` does) or a ``+``-join of ``physical`` (the physical box,
+:data:`jaxheli.model.WIDE_LOWER` / ``WIDE_UPPER``: ``jaxheli identify --box wide``), ``structure`` (model-structure
+determination after the fit: ``--structure``) and ``prior`` (a Gaussian prior toward ``--prior``, default Table 2,
+in the local fits: ``--prior table2``). Every row is labelled held out or in-sample (Table 2's: unknown, its
+training flight is not recorded), with the seconds of its fit and the model's unstable modes (eigenvalues of the
+continuous ``A`` with positive real part, :func:`jaxheli.modes.modes`).
 
 Usage::
 
     python benchmarks/identification.py synthetic [--methods iwo+freq+polish iwo+polish pem] [--noises 1 3] [--iterations 100]
     python benchmarks/identification.py real [--methods iwo+freq+polish iwo+polish pem] [--iterations 1000] [--cv-windows 4 0]
     python benchmarks/identification.py real --methods iwo+freq+polish --cv-windows 0 --train C "A, last 40 %"
+    python benchmarks/identification.py real --methods iwo+freq+polish --cv-windows 0 --iterations 1000 \
+        --recipes default physical structure physical+structure prior
 
-Writes ``rows.json`` and ``tables.md`` under ``--out`` (default ``results/identification/<part>``), after every run.
+Writes ``rows.json``, ``record.json`` (the rows with the run's settings, for ``docs/gen_benchmarks.py record``) and
+``tables.md`` under ``--out`` (default ``results/identification/<part>``), after every run.
 """
 
 from __future__ import annotations
@@ -37,6 +47,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import sys
 import time
 from pathlib import Path
 
@@ -46,11 +57,13 @@ import numpy as np
 import jaxheli
 from jaxheli.data.preprocess import split
 from jaxheli.benchmark.blind import BOX
+from jaxheli.bounds import named_box
 from jaxheli.gap.prepare import prepare
 from jaxheli.identify import identify, validation_block
 from jaxheli.io.paths import data_file
 from jaxheli.model import LOWER, R50_SI, TABLE2, UPPER
-from jaxheli.stages import METHODS, uses
+from jaxheli.modes import modes
+from jaxheli.stages import METHODS, PRIOR_SD, uses
 from jaxheli.spectra import estimate_frequency_response
 from jaxheli.synth.excitation import Excitation
 from jaxheli.synth.piloted import DEFAULT_EXCITATION, Pilot, piloted_flight
@@ -64,6 +77,10 @@ REAL_CHANNELS = ("p", "q", "phi", "theta")
 REAL_LOWPASS_HZ = 3.0
 RUN_S = 5.0
 """Verification run length, s (issue 35's measure: each run from its least-squares start with a per-channel bias)."""
+
+
+RECIPE_PARTS = ("physical", "structure", "prior")
+"""What a recipe (``--recipes``) may join with ``+``; ``default`` is none of them."""
 
 
 def _search(method: str, iterations: int) -> dict:
@@ -146,33 +163,73 @@ def _excitation(records: dict[str, jaxheli.FlightData]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def recipe_options(recipe: str, prior: str | None, prior_sd: float) -> dict:
+    """identify's options of ``recipe`` (``default`` or a ``+``-join of :data:`RECIPE_PARTS`): the box, the
+    structure determination and the prior (``prior``, default Table 2, sd ``prior_sd`` % of each value)."""
+    parts = [] if recipe == "default" else recipe.split("+")
+    if recipe != "default" and (not set(parts) <= set(RECIPE_PARTS) or len(set(parts)) < len(parts)):
+        raise ValueError(f"recipe {recipe!r}: 'default' or a '+'-join of {RECIPE_PARTS}")
+    box = named_box("wide" if "physical" in parts else "authors")
+    options = {"lower": np.asarray(box.lower, np.float64), "upper": np.asarray(box.upper, np.float64)}
+    if "structure" in parts:
+        options["structure"] = True
+    if "prior" in parts or prior:
+        options.update(prior=prior or "table2", prior_sd=prior_sd)
+    return options
+
+
+def unstable_modes(params: np.ndarray) -> list[dict]:
+    """The model's unstable modes (eigenvalues of the continuous ``A`` with positive real part, one per complex
+    pair): eigenvalue (1/s), name and time to double (s)."""
+    return [{"eigenvalue": [m.eigenvalue.real, m.eigenvalue.imag], "name": m.name,
+             "time_to_double_s": m.time_to_double} for m in modes(params) if m.eigenvalue.real > 0]
+
+
+def _sample(train_label: str, label: str) -> str:
+    """``held out`` unless the validation record ``label`` is (part of) the training record ``train_label``."""
+    inside = label == train_label or (train_label == "A" and label.startswith("A,"))
+    return "in-sample" if inside else "held out"
+
+
 def _real(args: argparse.Namespace, out: Path) -> list[dict]:
+    recipes = {recipe: recipe_options(recipe, args.prior, args.prior_sd) for recipe in args.recipes}
     trains, validations = real_flights()
     records = {**trains, **validations}
     excitation = _excitation(records)
     trains = {label: records[label] for label in args.train or trains}
     rows = []
     for label, validation in validations.items():
-        rows.append({"train": "-", "method": "paper Table 2", "validate": label, "seconds": 0.0,
-                     "held_out": True, **_real_scores(TABLE2, validation)})
+        rows.append({"train": "-", "recipe": "-", "method": "paper Table 2", "validate": label, "seconds": 0.0,
+                     "held_out": True, "sample": "unknown", "unstable_modes": unstable_modes(TABLE2),
+                     **_real_scores(TABLE2, validation)})
     for train_label, train in trains.items():
-        for method in args.methods:
-            for cv in args.cv_windows if method.endswith("+polish") else [0]:
-                t0 = time.perf_counter()
-                res = identify(train, method=method, seed=args.seed, cv_windows=cv or None, prior=args.prior,
-                               prior_sd=args.prior_sd if args.prior else None, **_search(method, args.iterations))
-                seconds = time.perf_counter() - t0
-                chosen = (res.polish or {}).get("cross_validation")
-                name = method if not cv else f"{method}, cv {cv}: {chosen['final_s']:.3g} s x {chosen['rounds']}"
-                name += f", prior {args.prior} {args.prior_sd:g} %" if args.prior else ""
-                for label, validation in validations.items():
-                    held_out = label != train_label and not (train_label == "A" and label.startswith("A,"))
-                    rows.append({"train": train_label, "method": name, "validate": label, "seconds": seconds,
-                                 "held_out": held_out, "cross_validation": chosen,
-                                 **_real_scores(res.params, validation)})
-                _write(out, rows, _real_table(rows, args) + "\n" + excitation)
-                print(f"{train_label} {name}: {seconds:.0f} s", flush=True)
+        for recipe, options in recipes.items():
+            for method in args.methods:
+                for cv in args.cv_windows if method.endswith("+polish") else [0]:
+                    rows += _real_fit(args, train_label, train, validations, recipe, method, cv, options)
+                    _write(out, rows, _real_table(rows, args) + "\n" + excitation, args)
     return rows
+
+
+def _real_fit(args: argparse.Namespace, train_label: str, train: jaxheli.FlightData,
+              validations: dict[str, jaxheli.FlightData], recipe: str, method: str, cv: int, options: dict
+              ) -> list[dict]:
+    """One fit (``method`` in ``recipe``, ``cv`` windows of cross-validation or none) on the training record, timed,
+    scored on every validation record."""
+    t0 = time.perf_counter()
+    res = identify(train, method=method, seed=args.seed, cv_windows=cv or None, **options,
+                   **_search(method, args.iterations))
+    seconds = time.perf_counter() - t0
+    chosen = (res.polish or {}).get("cross_validation")
+    name = method if not cv else f"{method}, cv {cv}: {chosen['final_s']:.3g} s x {chosen['rounds']}"
+    name += f", prior {options['prior']} {options['prior_sd']:g} %" if "prior" in options else ""
+    found = {"train": train_label, "recipe": recipe, "method": name, "seconds": seconds, "iterations":
+             args.iterations if uses(method, "iterations") else None, "cross_validation": chosen,
+             "fixed": sorted(res.fixed or {}), "unstable_modes": unstable_modes(res.params)}
+    print(f"{train_label} {recipe} {name}: {seconds:.0f} s", flush=True)
+    return [{**found, "validate": label, "held_out": _sample(train_label, label) == "held out",
+             "sample": _sample(train_label, label), **_real_scores(res.params, validation)}
+            for label, validation in validations.items()]
 
 
 def _real_scores(params: np.ndarray, flight: jaxheli.FlightData) -> dict:
@@ -187,30 +244,42 @@ def _metrics(block: dict) -> dict:
 
 def _real_table(rows: list[dict], args: argparse.Namespace) -> str:
     lines = [f"# Real flights ({_machine()}; {args.iterations} generations, seed {args.seed})", "",
-             "`*`: the validation record overlaps the training record. Channels p q phi theta.", ""]
+             "`*`: the validation record overlaps the training record (in-sample). Channels p q phi theta. "
+             "Unstable modes: eigenvalues of A with positive real part, 1/s.", ""]
     cols = (("pearson", "r", ".3f"), ("fit_percent", "fit", ".1f"), ("tic", "TIC", ".3f"))
     for title, key in (
             (f"{RUN_S:g}-s runs, each from its least-squares start with a per-channel bias (`jaxheli verify`)", "runs"),
             ("One run over the window: Pearson from rest | fit % and TIC, initial state estimated", None)):
-        lines += [f"## {title}", "", "| train | method | validate | s | " + " | ".join(
-            f"{short} {c}" for _, short, _ in cols for c in REAL_CHANNELS) + " |", "|---" * (4 + 3 * len(REAL_CHANNELS))
-            + "|"]
+        lines += [f"## {title}", "", "| train | recipe | method | validate | sample | s | " + " | ".join(
+            f"{short} {c}" for _, short, _ in cols for c in REAL_CHANNELS) + " | unstable modes |",
+            "|---" * (7 + 3 * len(REAL_CHANNELS)) + "|"]
         for r in rows:
             blocks = [r[key]] * 3 if key else [r["zero"], r["estimated"], r["estimated"]]
             cells = [f"{block[metric][c]:{fmt}}" for block, (metric, _, fmt) in zip(blocks, cols) for c in REAL_CHANNELS]
             mark = "" if r["held_out"] else " *"
-            lines.append(f"| {r['train']} | {r['method']} | {r['validate']}{mark} | {r['seconds']:.0f} | "
-                         + " | ".join(cells) + " |")
+            lines.append(f"| {r['train']} | {r.get('recipe', '-')} | {r['method']} | {r['validate']}{mark} | "
+                         f"{r.get('sample', '-')} | {r['seconds']:.0f} | " + " | ".join(cells) + " | "
+                         + _modes_cell(r.get("unstable_modes", [])) + " |")
         lines.append("")
     return "\n".join(lines)
+
+
+def _modes_cell(found: list[dict]) -> str:
+    """Unstable modes in one cell: ``+0.05`` or ``+0.3+-0.1j``, comma-separated (``none``)."""
+    return ", ".join(f"{m['eigenvalue'][0]:+.3g}" + (f"+-{m['eigenvalue'][1]:.3g}j" if m["eigenvalue"][1] else "")
+                     for m in found) or "none"
 
 
 def _machine() -> str:
     return f"{platform.machine()}, {jax.device_count()} {jax.default_backend()} device(s), jax {jax.__version__}"
 
 
-def _write(out: Path, rows: list[dict], table: str) -> None:
+def _write(out: Path, rows: list[dict], table: str, args: argparse.Namespace | None = None) -> None:
     (out / "rows.json").write_text(json.dumps(rows, indent=1, default=float))
+    if args is not None:
+        settings = {k: v for k, v in vars(args).items() if k != "out"}
+        record = {"argv": sys.argv[1:], "settings": settings, "machine": _machine(), "rows": rows}
+        (out / "record.json").write_text(json.dumps(record, indent=1, default=float))
     (out / "tables.md").write_text(table)
 
 
@@ -227,7 +296,11 @@ def main() -> None:
                              "(0: the polish's full schedule; default 4 0, both side by side)")
     parser.add_argument("--prior", default=None, metavar="MODEL",
                         help="real: a prior model for PEM and the polish (as `jaxheli identify --prior`, e.g. table2)")
-    parser.add_argument("--prior-sd", type=float, default=50.0, metavar="PCT", help="the prior's sd, %% of each value")
+    parser.add_argument("--prior-sd", type=float, default=PRIOR_SD, metavar="PCT",
+                        help="the prior's sd, %% of each value (default: identify's)")
+    parser.add_argument("--recipes", nargs="+", default=["default"], metavar="RECIPE",
+                        help="real: recipes, each 'default' (the authors' box) or a '+'-join of "
+                             f"{', '.join(RECIPE_PARTS)} (e.g. physical+structure; default: default)")
     parser.add_argument("--train", nargs="+", default=None, metavar="RECORD",
                         choices=("A", "A, first 60 %", "C", "A, last 40 %"),
                         help="real: the records to train on (default: A and its first 60 %%); a validation record "

@@ -251,8 +251,44 @@ def render_suite_time(rec: dict) -> str:
     return text + "\n\n" + _table(["suite", "commit", "tests", "pytest (s)"], rows)
 
 
+def _modes_cell(found: list[dict]) -> str:
+    """Unstable modes (eigenvalues with positive real part, 1/s) in one cell: ``+0.05``, ``+0.3 +- 0.1j``."""
+    return ", ".join(f"{m['eigenvalue'][0]:+.3g}" + (f" +- {m['eigenvalue'][1]:.3g}j" if m["eigenvalue"][1] else "")
+                     for m in found) or "none"
+
+
+RECIPE_CHANNELS = ("p", "q", "phi", "theta")
+"""The channels the recipes are compared on (``benchmarks/identification.py real``)."""
+
+
+def render_recipes(rec: dict) -> str:
+    """``benchmarks/identification.py real --recipes ...``: one row per training record, recipe and validation
+    record, labelled held out or in-sample: Pearson, fit % and TIC per channel over 5-s runs (``jaxheli verify``),
+    the model's unstable modes, the parameters the structure determination fixed and the fit's seconds."""
+    rows = rec["output"]["rows"]
+    channels = [c for c in RECIPE_CHANNELS if rows and c in rows[0]["runs"]["pearson"]]
+    metrics = (("pearson", "r", ".3f"), ("fit_percent", "fit %", ".1f"), ("tic", "TIC", ".3f"))
+    header = (["train", "recipe", "validate", "sample"] + [f"{short} {c}" for _, short, _ in metrics for c in channels]
+              + ["unstable modes (1/s)", "fixed", "fit s"])
+    body = [[r["train"], r["method"] if r["recipe"] == "-" else r["recipe"], r["validate"], f"**{r['sample']}**"]
+            + [f"{r['runs'][m][c]:{fmt}}" for m, _, fmt in metrics for c in channels]
+            + [_modes_cell(r["unstable_modes"])]
+            + (["-", "-"] if r["recipe"] == "-" else [str(len(r.get("fixed") or [])), f"{r['seconds']:.0f}"])
+            for r in rows]
+    settings = rec["output"].get("settings", {})
+    methods = ", ".join(f"`{m}`" for m in settings.get("methods", []))
+    return (f"Recipes of {methods} (issue 66): `default` is the authors' box (`jaxheli identify`'s default); "
+            "`physical` the physical box (`--box wide`, `jaxheli.model.WIDE_LOWER`/`WIDE_UPPER`); `structure` the "
+            "model-structure determination after the fit (`--structure`; *fixed*: how many parameters it fixed); "
+            "`prior` a Gaussian prior toward the paper's Table 2 in the local fits (`--prior table2`). "
+            f"{settings.get('iterations')} IWO generations. Scores over 5-s runs, each from its least-squares start with a "
+            "per-channel bias (`jaxheli verify`); sample: **held out** (the validation record is not part of the "
+            "training record), **in-sample** (it is), **unknown** (Table 2: its training flight is not recorded). "
+            "*fit s*: wall seconds of the fit on this machine.\n\n" + _table(header, body))
+
+
 RENDERERS = {"identify": render_identify, "verify": render_verify, "truth_forms": render_truth_forms,
-             "suite_time": render_suite_time}
+             "suite_time": render_suite_time, "recipes": render_recipes}
 """How each kind of record is drawn; a new kind (e.g. ``bench.json``) needs its renderer here."""
 
 INTRO = """# Benchmarks
