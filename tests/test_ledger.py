@@ -108,11 +108,15 @@ def test_a_ledger_line_that_does_not_parse_is_named(tmp_ledger):
 
 def test_the_committed_ledger_holds_the_runs_before_it():
     """Design, calibration and test seeds flown before the ledger, read from docs/blind_history.md, README.md and
-    thresholds.json (each line names its source); the whole calibration range is spent."""
+    thresholds.json (each line names its source), come first; the whole calibration range is spent. Every line after
+    them is a run ``jaxheli blind`` appended: its rules, commit and command, no source."""
     entries = ledger.read(ledger.FILE)
-    assert entries and all(e.source and e.rules is None for e in entries)
     assert [json.loads(line) for line in ledger.FILE.read_text().splitlines()] == [e.to_json() for e in entries]
-    spent = ledger.spent(ledger.FILE)
+    before = [e for e in entries if e.source]
+    since = entries[len(before):]
+    assert before and all(e.rules is None for e in before)
+    assert all(not e.source and e.rules and e.commit and e.command.startswith("jaxheli blind") for e in since)
+    spent = {s for e in before for s in e.numbers()}
     for first, last in [(0, 29), (40, 63), (70, 87), (100, 199), (1000, 1039), (2000, 2039), (3000, 3039),
                         (4000, 4034), (5000, 5279), (6000, 6159)]:
         assert set(range(first, last + 1)) <= spent, (first, last)
