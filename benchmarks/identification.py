@@ -245,29 +245,22 @@ def _metrics(block: dict) -> dict:
 def _real_table(rows: list[dict], args: argparse.Namespace) -> str:
     lines = [f"# Real flights ({_machine()}; {args.iterations} generations, seed {args.seed})", "",
              "`*`: the validation record overlaps the training record (in-sample). Channels p q phi theta. "
-             "Unstable modes: eigenvalues of A with positive real part, 1/s.", ""]
+             "Unstable modes: rows.json and the Benchmarks page (docs/gen_benchmarks.py's recipes).", ""]
     cols = (("pearson", "r", ".3f"), ("fit_percent", "fit", ".1f"), ("tic", "TIC", ".3f"))
     for title, key in (
             (f"{RUN_S:g}-s runs, each from its least-squares start with a per-channel bias (`jaxheli verify`)", "runs"),
             ("One run over the window: Pearson from rest | fit % and TIC, initial state estimated", None)):
         lines += [f"## {title}", "", "| train | recipe | method | validate | sample | s | " + " | ".join(
-            f"{short} {c}" for _, short, _ in cols for c in REAL_CHANNELS) + " | unstable modes |",
-            "|---" * (7 + 3 * len(REAL_CHANNELS)) + "|"]
+            f"{short} {c}" for _, short, _ in cols for c in REAL_CHANNELS) + " |",
+            "|---" * (6 + 3 * len(REAL_CHANNELS)) + "|"]
         for r in rows:
             blocks = [r[key]] * 3 if key else [r["zero"], r["estimated"], r["estimated"]]
             cells = [f"{block[metric][c]:{fmt}}" for block, (metric, _, fmt) in zip(blocks, cols) for c in REAL_CHANNELS]
             mark = "" if r["held_out"] else " *"
             lines.append(f"| {r['train']} | {r.get('recipe', '-')} | {r['method']} | {r['validate']}{mark} | "
-                         f"{r.get('sample', '-')} | {r['seconds']:.0f} | " + " | ".join(cells) + " | "
-                         + _modes_cell(r.get("unstable_modes", [])) + " |")
+                         f"{r.get('sample', '-')} | {r['seconds']:.0f} | " + " | ".join(cells) + " |")
         lines.append("")
     return "\n".join(lines)
-
-
-def _modes_cell(found: list[dict]) -> str:
-    """Unstable modes in one cell: ``+0.05`` or ``+0.3+-0.1j``, comma-separated (``none``)."""
-    return ", ".join(f"{m['eigenvalue'][0]:+.3g}" + (f"+-{m['eigenvalue'][1]:.3g}j" if m["eigenvalue"][1] else "")
-                     for m in found) or "none"
 
 
 def _machine() -> str:
