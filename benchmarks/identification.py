@@ -182,7 +182,7 @@ def unstable_modes(params: np.ndarray) -> list[dict]:
     """The model's unstable modes (eigenvalues of the continuous ``A`` with positive real part, one per complex
     pair): eigenvalue (1/s), name and time to double (s)."""
     return [{"eigenvalue": [m.eigenvalue.real, m.eigenvalue.imag], "name": m.name,
-             "time_to_double_s": m.time_to_double} for m in modes(params) if m.eigenvalue.real > 0]
+             "time_to_double_s": m.time_to_double} for m in modes(params) if m.time_to_double is not None]
 
 
 def _sample(train_label: str, label: str) -> str:
@@ -227,9 +227,9 @@ def _real_fit(args: argparse.Namespace, train_label: str, train: jaxheli.FlightD
              args.iterations if uses(method, "iterations") else None, "cross_validation": chosen,
              "fixed": sorted(res.fixed or {}), "unstable_modes": unstable_modes(res.params)}
     print(f"{train_label} {recipe} {name}: {seconds:.0f} s", flush=True)
-    return [{**found, "validate": label, "held_out": _sample(train_label, label) == "held out",
-             "sample": _sample(train_label, label), **_real_scores(res.params, validation)}
-            for label, validation in validations.items()]
+    samples = {label: _sample(train_label, label) for label in validations}
+    return [{**found, "validate": label, "held_out": samples[label] == "held out", "sample": samples[label],
+             **_real_scores(res.params, validation)} for label, validation in validations.items()]
 
 
 def _real_scores(params: np.ndarray, flight: jaxheli.FlightData) -> dict:

@@ -1,6 +1,7 @@
 """A one-axis servo beyond a wrong base model: does any candidate explain it once the structure is freed? Design only::
 
-    python benchmarks/servo_beyond_structure.py --seed 33 [--wn 12.5] [--zeta 1] [--axis lon] [--base default] --out F.json
+    python benchmarks/servo_beyond_structure.py --seed 33 [--wn 12.5] [--zeta 1] [--axis lon] [--base default] \\
+        --out F.json
 
 The independent truth simulator flies the wide-class truth of blind design seed ``--seed``
 (:func:`jaxheli.benchmark.blind.scenario`, ``wide``: couplings outside the authors' box) with a second-order servo
@@ -26,8 +27,8 @@ jax.config.update("jax_enable_x64", True)
 import numpy as np  # noqa: E402
 
 from jaxheli import configure_xla  # noqa: E402
-from jaxheli.benchmark.blind import BOXES, scenario  # noqa: E402
-from jaxheli.benchmark.blind._base import base_model  # noqa: E402
+from jaxheli._progress import reporting, stage  # noqa: E402
+from jaxheli.benchmark.blind import BOXES, base_model, scenario  # noqa: E402
 from jaxheli.benchmark.truth import NOISE, OUTPUTS, Effects, Servo, detectability_ratio, fly, outside_box  # noqa: E402
 from jaxheli.bounds import Bounds, physical_box  # noqa: E402
 from jaxheli.data.flight import FlightData  # noqa: E402
@@ -69,18 +70,21 @@ def main() -> None:
     clean = fly(where.theta, Effects(), style="validate", seed=2 * a.seed + 1, **common)
     flights = [FlightData(r.time, r.sticks, r.measured, tuple(OUTPUTS), source=f"design seed {a.seed} {role}")
                for r, role in ((train, "train"), (validate, "validate"))]
-    start = time.perf_counter()
-    theta, ident = base_model(flights[0], a.base, a.seed, outputs=tuple(OUTPUTS), box="authors")
-    base_s = time.perf_counter() - start
-    tp, vp = predictor_pair(theta, *flights, segment=6.0, smooth=True)
-    *arrays, owner = fx.tried_arrays(fx.ALL, tuple(OUTPUTS))
-    box = Bounds(*BOXES["authors"])
-    st = staged(tp, vp, theta, list(fx.ALL), tuple(arrays), owner, MAX_STEPS, MIN_SHRINK, theta_box(theta, box))
-    s = st.structure
-    beyond = []
-    if s is not None and s.significant:
-        beyond = ranked(tp, vp, s.theta, list(fx.ALL), tuple(arrays), owner, MAX_STEPS, MIN_SHRINK,
-                        theta_box(s.theta, physical_box(box))).entries
+    with reporting():
+        start = time.perf_counter()
+        with stage(f"base model by {a.base} on the training flight, in the authors' box"):
+            theta, ident = base_model(flights[0], a.base, a.seed, outputs=tuple(OUTPUTS), box="authors")
+        base_s = time.perf_counter() - start
+        tp, vp = predictor_pair(theta, *flights, segment=6.0, smooth=True)
+        *arrays, owner = fx.tried_arrays(fx.ALL, tuple(OUTPUTS))
+        box = Bounds(*BOXES["authors"])
+        st = staged(tp, vp, theta, list(fx.ALL), tuple(arrays), owner, MAX_STEPS, MIN_SHRINK, theta_box(theta, box))
+        s = st.structure
+        beyond = []
+        if s is not None and s.significant:
+            with stage("every candidate ranked again beyond the structure, in the physical ranges"):
+                beyond = ranked(tp, vp, s.theta, list(fx.ALL), tuple(arrays), owner, MAX_STEPS, MIN_SHRINK,
+                                theta_box(s.theta, physical_box(box))).entries
     record = {
         "seed": a.seed, "truth": where.truth, "outside_box": list(outside_box(where.theta)), "axis": a.axis,
         "wn": a.wn, "zeta": a.zeta, "equivalent_lag_s": 2 * a.zeta / a.wn,
