@@ -25,8 +25,9 @@ in-sample ceiling there (what no model trained elsewhere is expected to exceed w
 ``--recipes`` runs each method in each recipe (issue 66): ``default`` (the authors' box, :data:`jaxheli.model.LOWER`
 / ``UPPER``, what ``jaxheli identify`` does) or a ``+``-join of ``physical`` (the physical box,
 :data:`jaxheli.model.WIDE_LOWER` / ``WIDE_UPPER``: ``jaxheli identify --box wide``), ``structure`` (model-structure
-determination after the fit: ``--structure``) and ``prior`` (a Gaussian prior toward ``--prior``, default Table 2,
-in the local fits: ``--prior table2``). Every row is labelled held out or in-sample (Table 2's: unknown, its
+determination after the fit: ``--structure``), ``prior`` (a Gaussian prior toward ``--prior``, default Table 2,
+in the local fits: ``--prior table2``) and ``bandwidth`` (the fit at the low-passed record's bandwidth step,
+:func:`jaxheli.data.preprocess.bandwidth_step`: ``--fit-dt auto``). Every row is labelled held out or in-sample (Table 2's: unknown, its
 training flight is not recorded), with the seconds of its fit and the model's unstable modes (eigenvalues of the
 continuous ``A`` with positive real part, :func:`jaxheli.modes.modes`).
 
@@ -79,7 +80,7 @@ RUN_S = 5.0
 """Verification run length, s (issue 35's measure: each run from its least-squares start with a per-channel bias)."""
 
 
-RECIPE_PARTS = ("physical", "structure", "prior")
+RECIPE_PARTS = ("physical", "structure", "prior", "bandwidth")
 """What a recipe (``--recipes``) may join with ``+``; ``default`` is none of them."""
 
 
@@ -175,6 +176,8 @@ def recipe_options(recipe: str, prior: str | None, prior_sd: float) -> dict:
         options["structure"] = True
     if "prior" in parts or prior:
         options.update(prior=prior or "table2", prior_sd=prior_sd)
+    if "bandwidth" in parts:
+        options["fit_dt"] = "auto"
     return options
 
 

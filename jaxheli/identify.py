@@ -20,6 +20,7 @@ import scipy.stats
 from ._progress import stage
 from ._types import Float
 from .data.flight import FlightData, constant_outputs, default_outputs
+from .data.preprocess import bandwidth_step, resample
 from .evaluate import evaluate
 from .model import G_SI, LOWER, PARAM_NAMES, UPPER
 from .optim.frequency_fit import FrequencyFitResult, cifer_report
@@ -132,6 +133,7 @@ def identify(
     trials: int = 1,
     seed: int = 0,
     truth: Float[np.ndarray, "40"] | None = None,
+    fit_dt: float | str | None = None,
     **options: Any,
 ) -> IdentificationResult:
     """Identify the 40 hover-model parameters from a training record by a chain of stages (:mod:`jaxheli.stages`).
@@ -148,6 +150,11 @@ def identify(
         truth: the true parameters, scored beside the result with the share of identifiable parameters within 3
             Cramer-Rao standard errors of them (default: a synthetic flight's ``metadata["truth"]`` when it carries
             no unmodelled effect).
+        fit_dt: the step (s) the stages fit each flight at, resampled (:func:`~jaxheli.data.preprocess.resample`,
+            which does not filter: the flight must be low-passed below its Nyquist rate); ``"auto"``: a low-passed
+            flight's :func:`~jaxheli.data.preprocess.bandwidth_step`, the others at their own step; ``None`` or
+            ``"full"``: every flight at its own step. The standard errors and every score use the flights at their
+            own step (a structure determination's standard errors excepted: they are its fit's).
         options: the problem's settings (:data:`PROBLEM_DEFAULTS`) and, for a named method, its stages' options
             (:data:`~jaxheli.stages.KEYWORDS`: ``iterations``, ``polish_steps``, ``structure``, ...); one that no
             stage of the chain uses is a one-line ``ValueError``, and ``None`` leaves an option out.
@@ -157,13 +164,16 @@ def identify(
     if trials < 1:
         raise ValueError(f"identify: trials must be >= 1, got {trials}")
     given = {k: v for k, v in options.items() if k in PROBLEM_DEFAULTS}
+    fit_data, fit_steps = _at_fit_step(data, fit_dt)
     if isinstance(data, (Problem, Records)):
         _refuse_conflicts(data.settings, given)
-        problem = data
+        problem = fit_problem = data
     else:
         chosen = {**PROBLEM_DEFAULTS, **given}
-        problem = as_problem(data, None, precision=chosen.pop("search_precision"), **chosen)
-    task = Task(problem.variant(x0="zero"), data, trials, seed)
+        precision = chosen.pop("search_precision")
+        problem = as_problem(data, None, precision=precision, **chosen)
+        fit_problem = problem if fit_data is data else as_problem(fit_data, None, precision=precision, **chosen)
+    task = Task(fit_problem.variant(x0="zero"), fit_data, trials, seed)
     for step in chain:
         step.check(task)
     t0 = time.perf_counter()
@@ -173,7 +183,8 @@ def identify(
         record = record.merge(found)
     params = starts.params[starts.best] if record.structure is None else record.structure.theta
     convergence = None if record.convergence is None else _convergence(record.convergence, starts.best)
-    fitted, scored = chain[-1].errors_problem(task.problem, params), chain[-1].fitted(task.problem)
+    full = problem.variant(x0="zero")
+    fitted, scored = chain[-1].errors_problem(full, params), chain[-1].fitted(full)
     seconds = time.perf_counter() - t0
     if record.structure is None:
         with stage("standard errors (Cramer-Rao) at the best parameters") as now:
@@ -189,7 +200,7 @@ def identify(
         "lower": list(settings.lower), "upper": list(settings.upper), "cost": settings.cost,
         "polish_objective": own["polish_objective"], "polish_steps": own["polish_steps"],
         "polish_rounds": own["polish_rounds"], "cv_windows": own["cv_windows"],
-        "train_source": str(problem.source),
+        "train_source": str(problem.source), "fit_dt": fit_steps,
         "validate_source": None if validate is None else validate.source,
         "x64": bool(jax.config.jax_enable_x64), "search_precision": settings.precision,
         "engine_options": own["engine_options"], "freq_options": own["freq_options"],
@@ -222,6 +233,30 @@ def identify(
             structure=None if found is None else {k: v for k, v in found.to_json().items() if k != "fixed"},
             convergence=convergence,
         )
+
+
+def _at_fit_step(
+    data: FlightData | Sequence[FlightData] | Problem | Records, fit_dt: float | str | None
+) -> tuple[FlightData | Sequence[FlightData] | Problem | Records, list[float] | None]:
+    """The training record the stages fit (``data`` itself unless a flight's fitting step differs from its own) and
+    each flight's fitting step, s (``None``: every flight at its own); see :func:`identify`'s ``fit_dt``."""
+    if fit_dt is None or fit_dt == "full":
+        return data, None
+    if isinstance(data, (Problem, Records)):
+        raise ValueError(f"identify: fit_dt={fit_dt!r} needs flights, got a {type(data).__name__} (build it from the "
+                         "flights resampled to the step: jaxheli.resample)")
+    if isinstance(fit_dt, str) and fit_dt != "auto":
+        raise ValueError(f"identify: fit_dt must be 'auto', 'full', None or a step in seconds, got {fit_dt!r}")
+    flights = [data] if isinstance(data, FlightData) else list(data)
+    steps = [bandwidth_step(f) if fit_dt == "auto" else float(fit_dt) for f in flights]
+    for f, step in zip(flights, steps):
+        if step is not None and not step >= f.dt * (1.0 - 1e-9):
+            raise ValueError(f"identify: fit_dt {step:g} s is finer than {f.source}'s own step {f.dt:g} s")
+    steps = [f.dt if step is None else step for f, step in zip(flights, steps)]
+    if all(abs(step - f.dt) <= 1e-9 * f.dt for f, step in zip(flights, steps)):
+        return data, None
+    coarse = [resample(f, step) for f, step in zip(flights, steps)]
+    return (coarse[0] if isinstance(data, FlightData) else coarse), steps
 
 
 def _convergence(trials: list[dict[str, Any]], best: int) -> dict[str, Any]:

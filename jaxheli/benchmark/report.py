@@ -60,14 +60,15 @@ def markdown(result: dict) -> str:
                   "Each method in a fresh process, as `jaxheli identify` runs: JAX's default devices "
                   f"({', '.join(sorted({str(r.get('devices', '?')) for r in result['time_to_model']}))}), "
                   "nothing compiled before it, no persistent cache.", "",
-                  "| method | time form | samples | s (measured) | NumPy loop s (estimated) | ratio "
+                  "| method | fit step s | time form | samples | s (measured) | NumPy loop s (estimated) | ratio "
                   "| fit % p / q / phi / theta |",
-                  "|---|---|---|---|---|---|---|"]
+                  "|---|---|---|---|---|---|---|---|"]
         for r in result["time_to_model"]:
             fit = " / ".join(f"{r['fit_percent'][c]:.1f}" for c in ("p", "q", "phi", "theta")
                              if c in r.get("fit_percent", {})) or f"RSS {r['rss']:.4g} ({r['steps']} steps)"
             numpy = f"{r['numpy_seconds']:.0f} | {r['numpy_ratio']:.0f}x" if "numpy_seconds" in r else "- | -"
-            lines.append(f"| {r['method']} | {r.get('time_form', 'auto')} | {r['samples']} | {r['seconds']:.1f} | "
+            step = "own" if not r.get("fit_dt") else " / ".join(f"{d:.4g}" for d in r["fit_dt"])
+            lines.append(f"| {r['method']} | {step} | {r.get('time_form', 'auto')} | {r['samples']} | {r['seconds']:.1f} | "
                          f"{numpy} | {fit} |")
         if any("numpy_seconds" in r and r["method"].startswith("iwo") for r in result["time_to_model"]):
             lines += ["", "IWO's NumPy loop: the candidates IWO scored, at the loop's rate measured in this run (an "

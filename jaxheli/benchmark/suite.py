@@ -38,6 +38,7 @@ def measure(
     form_samples: Sequence[int] | None = None,
     form_sizes: Sequence[int] | None = None,
     costs: bool = True,
+    model_fit_dts: Sequence[str | float] = ("full",),
 ) -> dict:
     """Every measurement of one run, as a JSON-ready dict (printing a line per rate measured).
 
@@ -47,7 +48,8 @@ def measure(
     (0: skip), on the flight ``experiment_data`` (``FILE[:t0-t1]``; default: flight A from the shared data if
     present, else a synthetic 8590-sample flight; with ``quick`` the shortest synthetic flight of ``samples``); the
     time to a model of each of ``model_methods`` (:func:`~jaxheli.benchmark.time_to_model.time_to_model`,
-    ``model_iterations`` generations, ``pem_steps`` PEM steps) on flight A prepared as the paper comparison does
+    ``model_iterations`` generations, ``pem_steps`` PEM steps, each method once per fit step of ``model_fit_dts``:
+    ``identify``'s ``fit_dt``) on flight A prepared as the paper comparison does
     (with ``quick``, ``experiment_data``, or without the shared data: the experiment's flight); the rates of the costs
     the engines minimise (``costs``). The experiment and the time to a model run
     once per time form of ``forms`` (``"auto"``, ``"scan"``, ``"parallel"``: :mod:`jaxheli.sim.forms`); the scan
@@ -75,7 +77,7 @@ def measure(
             "experiment_iterations": experiment_iterations, "trials": trials, "experiment_data": experiment_data,
             "model_methods": list(model_methods), "model_iterations": model_iterations, "pem_steps": pem_steps,
             "quick": quick, "forms": list(forms), "form_samples": form_samples, "form_sizes": form_sizes,
-            "costs": costs},
+            "costs": costs, "model_fit_dts": list(model_fit_dts)},
         "matmul_peak_flops": {},
         "rates": [],
         "iwo_generation": [],
@@ -128,13 +130,14 @@ def measure(
         result["costs"] = {"N": mid, "P": COST_CANDIDATES, "rows": cost_rates(flights[mid], COST_CANDIDATES, repeats)}
     if model_methods:
         result["time_to_model"] = [row for form in forms for row in _time_to_model(
-            model_methods, model_iterations, pem_steps, baselines, quick, flights, experiment_data, form)]
+            model_methods, model_iterations, pem_steps, baselines, quick, flights, experiment_data, form,
+            model_fit_dts)]
     return result
 
 
 def _time_to_model(methods: Sequence[str], iterations: int, pem_steps: int, baselines: dict[int, float],
-                   quick: bool, flights: dict[int, FlightData], experiment_data: str | None, time_form: str
-                   ) -> list[dict]:
+                   quick: bool, flights: dict[int, FlightData], experiment_data: str | None, time_form: str,
+                   fit_dts: Sequence[str | float]) -> list[dict]:
     from .baseline import numpy_rate
     from .time_to_model import paper_training_flight, time_to_model
 
@@ -149,7 +152,7 @@ def _time_to_model(methods: Sequence[str], iterations: int, pem_steps: int, base
             flight = _experiment_flight(experiment_data)
     rate = baselines.get(flight.n_samples) or numpy_rate(flight, 4)
     return time_to_model(flight, methods=methods, iterations=iterations, pem_steps=pem_steps, numpy_rate=rate,
-                         time_form=time_form)
+                         time_form=time_form, fit_dts=fit_dts)
 
 
 def _experiment(flight: FlightData, trials: int, iterations: int, baselines: dict[int, float], time_form: str
@@ -161,7 +164,7 @@ def _experiment(flight: FlightData, trials: int, iterations: int, baselines: dic
     from .experiment import paper_experiment
 
     e = paper_experiment(flight, trials=trials, iterations=iterations, dtype=jnp.float32, progress=True,
-                         time_form=time_form)
+                         time_form=time_form, fit_dts=fit_dts)
     e["numpy_rate"] = baselines.get(flight.n_samples) or numpy_rate(flight, 4)
     e["devices"] = jax.local_device_count()
     return e

@@ -43,6 +43,7 @@ def time_to_model(
     fresh: bool = True,
     progress: bool | None = None,
     time_form: str = "auto",
+    fit_dts: Sequence[str | float] = ("full",),
 ) -> list[dict]:
     """Identify ``flight`` once per method, timed end to end (compilation included): ``"pem"``
     (:func:`jaxheli.pem`, ``pem_steps`` Levenberg-Marquardt steps from the middle of the box) and any
@@ -52,7 +53,8 @@ def time_to_model(
     writes its stages' progress lines (:mod:`jaxheli._progress`; ``None``: when this process does, so a fresh
     process reports as the bench that started it). ``time_form`` ``"scan"`` or ``"parallel"`` is set as
     ``JAXHELI_TIME_FORM`` in the fresh process (:mod:`jaxheli.sim.forms`; ``"auto"`` leaves the variable as this
-    process has it); with ``fresh=False`` this process's setting holds.
+    process has it); with ``fresh=False`` this process's setting holds. ``identify``'s methods run once per step of
+    ``fit_dts`` (its ``fit_dt``: ``"full"``, ``"auto"`` or seconds).
 
     Each row: method, seconds, the JAX devices it ran on, the model's training fit % and Pearson per channel
     (``identify``'s methods) or its sum of squares and steps (PEM), and the seconds the per-candidate NumPy loop at
@@ -62,9 +64,9 @@ def time_to_model(
     """
     progress = active() if progress is None else progress
     rows = []
-    for method in methods:
-        note(f"time to a model: {method}" + (" in a fresh process" if fresh else ""))
-        args = (flight, method, iterations, pem_steps, seed, progress)
+    for method, fit_dt in [(m, d) for m in methods for d in (("full",) if m == "pem" else fit_dts)]:
+        note(f"time to a model: {method}, fit step {fit_dt}" + (" in a fresh process" if fresh else ""))
+        args = (flight, method, iterations, pem_steps, seed, progress, fit_dt)
         if fresh:
             with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"), initializer=_float64,
                                      initargs=(time_form,)) as pool:
@@ -77,7 +79,8 @@ def time_to_model(
             row["numpy_seconds"] = simulations / numpy_rate
             row["numpy_ratio"] = row["numpy_seconds"] / row["seconds"]
         rows.append(row)
-        print(f"time to model, {method} (time form {time_form}): {row['seconds']:.1f} s", flush=True)
+        print(f"time to model, {method}, fit step {fit_dt} (time form {time_form}): {row['seconds']:.1f} s",
+              flush=True)
     return rows
 
 
@@ -95,15 +98,16 @@ def _float64(time_form: str = "auto") -> None:
     jax.config.update("jax_enable_x64", True)
 
 
-def _timed(flight: FlightData, method: str, iterations: int, pem_steps: int, seed: int, progress: bool
-           ) -> dict[str, Any]:
+def _timed(flight: FlightData, method: str, iterations: int, pem_steps: int, seed: int, progress: bool,
+           fit_dt: str | float = "full") -> dict[str, Any]:
     """One method's row of :func:`time_to_model` in this process's precision, with ``simulations``: the NumPy loop's
     work for the same model (``None`` where not counted); with ``progress``, its stages' lines."""
     with reporting(progress):
-        return _row(flight, method, iterations, pem_steps, seed)
+        return _row(flight, method, iterations, pem_steps, seed, fit_dt)
 
 
-def _row(flight: FlightData, method: str, iterations: int, pem_steps: int, seed: int) -> dict[str, Any]:
+def _row(flight: FlightData, method: str, iterations: int, pem_steps: int, seed: int, fit_dt: str | float
+         ) -> dict[str, Any]:
     import jax
 
     from ..sim.forms import forced_form
@@ -116,8 +120,8 @@ def _row(flight: FlightData, method: str, iterations: int, pem_steps: int, seed:
                "simulations": fit.n_steps * (len(fit.free) + 1)}
     else:
         search = {"iterations": iterations, "progress": False} if uses(method, "iterations") else {}
-        result = identify(flight, method=method, trials=1, seed=seed, **search)
-        row = {"method": method, "seconds": time.perf_counter() - start,
+        result = identify(flight, method=method, trials=1, seed=seed, fit_dt=fit_dt, **search)
+        row = {"method": method, "fit_dt": result.settings["fit_dt"], "seconds": time.perf_counter() - start,
                "fit_percent": result.train["fit_percent"], "pearson": result.train["pearson"],
                "simulations": result.settings["evaluations"] if method.startswith("iwo") else None}
     return {**row, "devices": jax.local_device_count(), "samples": flight.n_samples, "time_form": forced_form()}

@@ -39,6 +39,9 @@ def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                    help="methods timed from flight A to a model, compilation included (none: skip)")
     p.add_argument("--model-iterations", type=int, default=1000, help="generations of the timed population methods")
     p.add_argument("--pem-steps", type=int, default=200, help="Levenberg-Marquardt steps of the timed PEM")
+    p.add_argument("--model-fit-dt", nargs="+", default=["full"], metavar="STEP",
+                   help="fit steps each timed identify method runs at, once each: full (default), auto (a low-passed "
+                        "flight's bandwidth step) or seconds (identify --fit-dt)")
     p.add_argument("--forms", nargs="+", default=["auto"], choices=["auto", "scan", "parallel"],
                    help="time forms the experiment and the time to a model run under, each once (jaxheli.sim.forms)")
     p.add_argument("--form-samples", type=int, nargs="*", default=None,
@@ -94,7 +97,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                      trials=args.trials, experiment_data=args.data, model_methods=args.model_methods,
                      model_iterations=args.model_iterations, pem_steps=args.pem_steps, quick=args.quick,
                      settings={k: v for k, v in vars(args).items() if k != "func"}, forms=args.forms,
-                     form_samples=args.form_samples, form_sizes=args.form_sizes, costs=args.costs)
+                     form_samples=args.form_samples, form_sizes=args.form_sizes, costs=args.costs,
+                     model_fit_dts=[d if d in ("full", "auto") else float(d) for d in args.model_fit_dt])
     paths = write_bench(result, args.out)
     print(markdown(result))
     print(f"wrote {', '.join(map(str, paths))}")

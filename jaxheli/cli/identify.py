@@ -91,10 +91,28 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                    help=f"freq: Levenberg-Marquardt step limit of each start (default {_FREQ_DEFAULTS['max_steps']})")
     p.add_argument("--freq-band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                    help="freq: fitted band, Hz (default 0.1 Hz to a third of Nyquist, at most 10 Hz)")
+    p.add_argument("--fit-dt", type=_fit_dt, default=None, metavar="S",
+                   help="step the fit runs at, s: 'auto' (a flight low-passed by jaxheli prepare --lowpass at a "
+                        "step of about 1 / (8 x its cut-off), the others at their own), 'full' (default: every "
+                        "flight at its own step) or seconds (the flight must be low-passed below that step's "
+                        "Nyquist rate); scores and standard errors use each flight's own step")
     add_sim_options(p)
     add_quiet_option(p)
     p.set_defaults(func=_cmd_identify)
     return p
+
+
+def _fit_dt(text: str) -> float | str:
+    """``--fit-dt``'s value: ``auto``, ``full`` or a positive step in seconds."""
+    if text in ("auto", "full"):
+        return text
+    try:
+        step = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'auto', 'full' or seconds, got {text!r}") from None
+    if not step > 0.0:
+        raise argparse.ArgumentTypeError(f"a step must be positive, got {text!r}")
+    return step
 
 
 def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -182,7 +200,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     box = named_box(args.box)
     result = identify(train, method=args.method, validate=validate, trials=args.trials, seed=args.seed,
                       outputs=outputs(args.outputs), lower=np.asarray(box.lower, np.float64),
-                      upper=np.asarray(box.upper, np.float64), **sim_options(args), **options)
+                      upper=np.asarray(box.upper, np.float64), fit_dt=args.fit_dt, **sim_options(args), **options)
     truth = result.truth or {}
     sources = " + ".join(f.source for f in records)
     _print_metrics(f"{args.method} on the training flight {sources}, initial state estimated"

@@ -114,6 +114,24 @@ def lowpass(flight: FlightData, cutoff_hz: float, order: int = 4, include_inputs
     return _step(flight, record, inputs=inputs, outputs=outputs)
 
 
+SAMPLES_PER_PERIOD = 8
+"""Samples per period of a low-passed record's cut-off frequency at which it is fitted (:func:`bandwidth_step`):
+system identification practice (CIFER, SIDPAC) fits at 5-10 times the bandwidth."""
+
+
+def bandwidth_step(flight: FlightData, samples_per_period: int = SAMPLES_PER_PERIOD) -> float | None:
+    """The step (s) at which a low-passed record is fitted: the largest whole multiple of its own step within
+    ``1 / (samples_per_period f_c)``, ``f_c`` the lowest cut-off (Hz) its preprocessing applied to inputs and outputs
+    (:func:`lowpass`); ``None`` when it was not low-passed so, or that multiple is 1 (flight A low-passed at 3 Hz
+    and sampled at 126 Hz: 5 steps, 0.040 s)."""
+    cutoffs = [float(s["cutoff_hz"]) for s in flight.metadata.get("preprocessing", [])
+               if s.get("step") == "lowpass" and s.get("include_inputs", True)]
+    if not cutoffs:
+        return None
+    multiple = int(np.floor(1.0 / (samples_per_period * min(cutoffs) * flight.dt) + 1e-9))
+    return multiple * flight.dt if multiple >= 2 else None
+
+
 def trim(
     flight: FlightData,
     start: float | None = None,

@@ -19,8 +19,10 @@ Without a box its iterates are those of optimistix's own Levenberg-Marquardt (``
 linearised residuals, which transposes them), in less time: forward mode needs no transpose.
 
 Every engine drives it the same way (:func:`boxed_least_squares`): residuals of the unit coordinates with the
-penalty past the box appended (:meth:`jaxheli.bounds.Bounds.penalty`), steps kept within :data:`MARGIN` of it, and
-the answer, clipped into the box, kept only where it is finite and scores no worse than the start.
+penalty past the box appended (:meth:`jaxheli.bounds.Bounds.penalty`), steps kept within :data:`MARGIN` of it; then,
+where that answer lies outside the box, a second pass from it clipped into the box with steps kept in the box itself
+(the axes that want out held at their bound, the rest solved again), so the answer is feasible and scores no worse
+than the clipped one; it is kept only where it is finite and scores no worse than the start.
 """
 
 from __future__ import annotations
@@ -60,7 +62,8 @@ class BoxedDampedNewton(optx.AbstractDescent):
 
     n_bounded: int = eqx.field(static=True)
     damped: bool = eqx.field(static=True, default=True)
-    margin: float = eqx.field(static=True, default=0.0)
+    margin: Float[Array, ""] = eqx.field(default=0.0, converter=jnp.asarray)
+    """A run-time value, so that the driver's passes with and without a margin share one compiled solve."""
 
     def init(self, y: Float[Array, " n"], f_info_struct: optx.FunctionInfo.ResidualJac) -> _DescentState:
         del f_info_struct
@@ -193,12 +196,12 @@ class BoxedSolution(eqx.Module):
     """Outcome of :func:`boxed_least_squares`.
 
     Attributes:
-        value: ``[n]`` the unit coordinates kept: the solver's answer clipped into the box, or the start.
+        value: ``[n]`` the unit coordinates kept: the driver's answer (in the box), or the start.
         improved: whether the answer replaced the start.
         loss: ``[2]`` the score of the start and of the answer.
         aux: what the scoring computed besides (e.g. other measures of both points).
-        num_steps: solver steps taken.
-        result: optimistix's result.
+        num_steps: solver steps taken (both passes).
+        result: optimistix's result (the first pass's).
     """
 
     value: Float[Array, " n"]
@@ -218,6 +221,16 @@ class BoxedSolution(eqx.Module):
         return jax.tree.map(lambda a, b: jnp.where(self.improved, b, a), start, answer)
 
 
+SETTLE_STEPS = 16
+"""Most steps of the driver's second pass (:func:`boxed_least_squares`), which starts from the first pass's answer
+clipped into the box: where that answer had converged, a few steps re-solve the axes the clipping moved."""
+
+
+def _clip_bounded(u: Float[Array, " n"], n_bounded: int) -> Float[Array, " n"]:
+    """``u`` with its first ``n_bounded`` entries clipped into the unit box."""
+    return jnp.where(jnp.arange(u.shape[0]) < n_bounded, Bounds.clip_unit(u), u)
+
+
 def boxed_least_squares(
     fit: Callable[[Float[Array, " n"], Args], Float[Array, " m"]],
     solver: BoxedLeastSquares,
@@ -228,25 +241,44 @@ def boxed_least_squares(
     limit: Int[Array, ""] | None = None,
 ) -> BoxedSolution:
     """Least squares on ``fit(u, args)``'s residuals of the unit coordinates ``u``, the penalty past the box
-    appended, from ``u0`` (``solver``: its steps stay within :data:`MARGIN` of the box; reaching ``max_steps`` is
-    reported, not raised).
+    appended, from ``u0``, in two passes of one compiled solve (reaching a step limit is reported, not raised):
 
-    The start is kept unless the solver's answer is finite and scores no worse; then the answer, clipped into the
-    box, is. ``score(u0, answer, args)`` (``answer`` as the solver left it) gives the objective at both ``[2]`` and
-    whatever else it computed with them (:attr:`BoxedSolution.aux`); by default the penalised residuals' sum of
-    squares. ``limit`` (an array, at most ``max_steps``) stops the solver after that many steps instead, as reaching
-    ``max_steps`` would, without compiling again for each limit.
+    1. ``solver`` with its margin (steps within :data:`MARGIN` of the box), at most ``limit`` steps (an array, at
+       most ``max_steps``: one program for every limit; default ``max_steps``);
+    2. where that answer lies outside the box: from it clipped into the box, steps kept in the box (margin 0), at
+       most :data:`SETTLE_STEPS` and the steps the first pass left of ``limit`` (the limit holds for both). Of the clipped answer and this one, the lower penalised sum of
+       squares is the answer: it lies in the box and scores no worse than the clipped first answer.
+
+    The start is kept unless the answer is finite and scores no worse. ``score(u0, answer, args)`` gives the objective
+    at both ``[2]`` and whatever else it computed with them (:attr:`BoxedSolution.aux`); by default the penalised
+    residuals' sum of squares. ``num_steps`` counts both passes' steps; ``result`` is the first pass's.
     """
+    n_bounded = solver.descent.n_bounded
 
     def penalised(u: Float[Array, " n"], args: Args) -> Float[Array, " r"]:
         return jnp.concatenate([fit(u, args), Bounds.penalty(u)])
 
-    options = {} if limit is None else {STEP_LIMIT: limit}
-    sol = optx.least_squares(penalised, solver, u0, args=args, options=options, max_steps=max_steps, throw=False)
+    def solve(
+        carry: tuple[Float[Array, " n"], Int[Array, ""]], margin: Float[Array, ""]
+    ) -> tuple[tuple[Float[Array, " n"], Int[Array, ""]], tuple[Float[Array, " n"], Int[Array, ""], optx.RESULTS]]:
+        u, steps = carry
+        sol = optx.least_squares(penalised, eqx.tree_at(lambda s: s.descent.margin, solver, margin), u, args=args,
+                                 options={STEP_LIMIT: steps}, max_steps=max_steps, throw=False)
+        clipped, taken = _clip_bounded(sol.value, n_bounded), sol.stats["num_steps"]
+        settle = jnp.where(jnp.any(clipped != sol.value), jnp.clip(steps - taken, 0, SETTLE_STEPS), 0)
+        return (clipped, settle), (clipped, taken, sol.result)
+
+    first = jnp.asarray(max_steps if limit is None else limit)
+    margins = jnp.stack([solver.descent.margin, jnp.zeros_like(solver.descent.margin)])
+    _, (ends, steps, results) = jax.lax.scan(solve, (u0, first), margins)
+    answer = ends[1]
+    if not solver.descent.damped:  # Levenberg-Marquardt accepts only steps that lower the sum; Gauss-Newton any
+        sums = jax.vmap(lambda u: jnp.sum(penalised(u, args) ** 2))(ends)
+        answer = jnp.where(sums[1] <= sums[0], ends[1], ends[0])
     if score is None:
-        loss, aux = jax.vmap(lambda u: jnp.sum(penalised(u, args) ** 2))(jnp.stack([u0, sol.value])), None
+        loss, aux = jax.vmap(lambda u: jnp.sum(penalised(u, args) ** 2))(jnp.stack([u0, answer])), None
     else:
-        loss, aux = score(u0, sol.value, args)
-    improved = jnp.all(jnp.isfinite(sol.value)) & (loss[1] <= loss[0])
-    value = jnp.where(improved, Bounds.clip_unit(sol.value), u0)
-    return BoxedSolution(value, improved, loss, aux, sol.stats["num_steps"], sol.result)
+        loss, aux = score(u0, answer, args)
+    improved = jnp.all(jnp.isfinite(answer)) & (loss[1] <= loss[0])
+    value = jnp.where(improved, answer, u0)
+    return BoxedSolution(value, improved, loss, aux, jnp.sum(steps), jax.tree.map(lambda r: r[0], results))
