@@ -164,7 +164,7 @@ def _experiment(flight: FlightData, trials: int, iterations: int, baselines: dic
     from .experiment import paper_experiment
 
     e = paper_experiment(flight, trials=trials, iterations=iterations, dtype=jnp.float32, progress=True,
-                         time_form=time_form, fit_dts=fit_dts)
+                         time_form=time_form)
     e["numpy_rate"] = baselines.get(flight.n_samples) or numpy_rate(flight, 4)
     e["devices"] = jax.local_device_count()
     return e

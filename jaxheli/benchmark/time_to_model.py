@@ -65,7 +65,8 @@ def time_to_model(
     progress = active() if progress is None else progress
     rows = []
     for method, fit_dt in [(m, d) for m in methods for d in (("full",) if m == "pem" else fit_dts)]:
-        note(f"time to a model: {method}, fit step {fit_dt}" + (" in a fresh process" if fresh else ""))
+        step = "" if fit_dt == "full" else f", fit step {fit_dt}"
+        note(f"time to a model: {method}{step}" + (" in a fresh process" if fresh else ""))
         args = (flight, method, iterations, pem_steps, seed, progress, fit_dt)
         if fresh:
             with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"), initializer=_float64,
@@ -79,8 +80,7 @@ def time_to_model(
             row["numpy_seconds"] = simulations / numpy_rate
             row["numpy_ratio"] = row["numpy_seconds"] / row["seconds"]
         rows.append(row)
-        print(f"time to model, {method}, fit step {fit_dt} (time form {time_form}): {row['seconds']:.1f} s",
-              flush=True)
+        print(f"time to model, {method}{step} (time form {time_form}): {row['seconds']:.1f} s", flush=True)
     return rows
 
 

@@ -183,7 +183,7 @@ def _fit_row(
 
     u0 = box.to_unit(p0)
     sol = boxed_least_squares(lambda u, _: fit_res(u), least_squares_solver("lm", 1e-6, 1e-8, u0.shape[0]), u0,
-                              None, bound, limit=limit)
+                              None, bound, limit=limit, settle=0)  # fit_res is of the clipped point already
     u = sol.value
     J, res = jax.jacfwd(lambda v: (fit_res(v),) * 2, has_aux=True)(u)  # one copy of the predictor for both
     rss = jnp.sum(res**2)

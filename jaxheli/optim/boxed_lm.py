@@ -239,6 +239,7 @@ def boxed_least_squares(
     max_steps: int,
     score: Callable[[Float[Array, " n"], Float[Array, " n"], Args], tuple[Float[Array, "2"], Aux]] | None = None,
     limit: Int[Array, ""] | None = None,
+    settle: int = SETTLE_STEPS,
 ) -> BoxedSolution:
     """Least squares on ``fit(u, args)``'s residuals of the unit coordinates ``u``, the penalty past the box
     appended, from ``u0``, in two passes of one compiled solve (reaching a step limit is reported, not raised):
@@ -246,7 +247,9 @@ def boxed_least_squares(
     1. ``solver`` with its margin (steps within :data:`MARGIN` of the box), at most ``limit`` steps (an array, at
        most ``max_steps``: one program for every limit; default ``max_steps``);
     2. where that answer lies outside the box: from it clipped into the box, steps kept in the box (margin 0), at
-       most :data:`SETTLE_STEPS` and the steps the first pass left of ``limit`` (the limit holds for both). Of the clipped answer and this one, the lower penalised sum of
+       most ``settle`` steps (default :data:`SETTLE_STEPS`) and the steps the first pass left of ``limit`` (the
+       limit holds for both). ``settle=0`` keeps the clipped answer: for residuals that are a function of the
+       clipped point already (a diagnosis's effect fits), it has the solver's own residuals and no penalty. Of the clipped answer and this one, the lower penalised sum of
        squares is the answer: it lies in the box and scores no worse than the clipped first answer.
 
     The start is kept unless the answer is finite and scores no worse. ``score(u0, answer, args)`` gives the objective
@@ -265,8 +268,8 @@ def boxed_least_squares(
         sol = optx.least_squares(penalised, eqx.tree_at(lambda s: s.descent.margin, solver, margin), u, args=args,
                                  options={STEP_LIMIT: steps}, max_steps=max_steps, throw=False)
         clipped, taken = _clip_bounded(sol.value, n_bounded), sol.stats["num_steps"]
-        settle = jnp.where(jnp.any(clipped != sol.value), jnp.clip(steps - taken, 0, SETTLE_STEPS), 0)
-        return (clipped, settle), (clipped, taken, sol.result)
+        budget = jnp.where(jnp.any(clipped != sol.value), jnp.clip(steps - taken, 0, settle), 0)
+        return (clipped, budget), (clipped, taken, sol.result)
 
     first = jnp.asarray(max_steps if limit is None else limit)
     margins = jnp.stack([solver.descent.margin, jnp.zeros_like(solver.descent.margin)])
