@@ -27,8 +27,8 @@ in-sample ceiling there (what no model trained elsewhere is expected to exceed w
 :data:`jaxheli.model.WIDE_LOWER` / ``WIDE_UPPER``: ``jaxheli identify --box wide``), ``structure`` (model-structure
 determination after the fit: ``--structure``), ``prior`` (a Gaussian prior toward ``--prior``, default Table 2,
 in the local fits: ``--prior table2``) and ``bandwidth`` (the fit at the low-passed record's bandwidth step,
-:func:`jaxheli.data.preprocess.bandwidth_step`: ``--fit-dt auto``). Every row is labelled held out or in-sample (Table 2's: unknown, its
-training flight is not recorded), with the seconds of its fit and the model's unstable modes (eigenvalues of the
+:func:`jaxheli.data.preprocess.bandwidth_step`: ``--fit-dt auto``). Every row is labelled held out or in-sample
+(Table 2's: unknown, its training flight is not recorded), with the seconds of its fit and the model's unstable modes (eigenvalues of the
 continuous ``A`` with positive real part, :func:`jaxheli.modes.modes`).
 
 Usage::

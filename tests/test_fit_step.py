@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from jaxheli import identify, make_problem, piloted_flight
+from jaxheli.identify import scores
 from jaxheli.data.preprocess import bandwidth_step, lowpass, resample
 from jaxheli.model import PARAM_NAMES, TABLE2
 from jaxheli.optim.uncertainty import standard_errors
@@ -41,8 +42,6 @@ def test_identify_fits_at_the_step_and_scores_at_the_records_own(low_passed):
     full = identify(low_passed, method="pem", fit_dt="full", start=start)
     assert coarse.settings["fit_dt"] == [pytest.approx(0.04)] and full.settings["fit_dt"] is None
     assert coarse.convergence["converged"] and full.convergence["converged"]
-    from jaxheli.identify import scores
-
     own_step = make_problem(low_passed).variant(segment=5.0, x0="measured")  # PEM's training scores: 5-s runs
     assert scores(coarse.params, own_step)["fit_percent"] == coarse.train["fit_percent"]
     assert not np.array_equal(coarse.params, full.params)  # the stages saw the resampled record

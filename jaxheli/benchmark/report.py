@@ -68,8 +68,8 @@ def markdown(result: dict) -> str:
                              if c in r.get("fit_percent", {})) or f"RSS {r['rss']:.4g} ({r['steps']} steps)"
             numpy = f"{r['numpy_seconds']:.0f} | {r['numpy_ratio']:.0f}x" if "numpy_seconds" in r else "- | -"
             step = "own" if not r.get("fit_dt") else " / ".join(f"{d:.4g}" for d in r["fit_dt"])
-            lines.append(f"| {r['method']} | {step} | {r.get('time_form', 'auto')} | {r['samples']} | {r['seconds']:.1f} | "
-                         f"{numpy} | {fit} |")
+            lines.append(f"| {r['method']} | {step} | {r.get('time_form', 'auto')} | {r['samples']} | "
+                         f"{r['seconds']:.1f} | {numpy} | {fit} |")
         if any("numpy_seconds" in r and r["method"].startswith("iwo") for r in result["time_to_model"]):
             lines += ["", "IWO's NumPy loop: the candidates IWO scored, at the loop's rate measured in this run (an "
                           "estimate, not a run; the frequency fit and the polish are not counted in it)."]

@@ -170,6 +170,19 @@ def sim_options(args: argparse.Namespace) -> dict:
     return {"hold": args.hold, "g": args.g, "segment": args.segment}
 
 
+def fit_step(text: str) -> float | str:
+    """A fit step option's value (``identify --fit-dt``, ``bench --model-fit-dt``): ``auto``, ``full`` or a positive step in seconds."""
+    if text in ("auto", "full"):
+        return text
+    try:
+        step = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'auto', 'full' or seconds, got {text!r}") from None
+    if not step > 0.0:
+        raise argparse.ArgumentTypeError(f"a step must be positive, got {text!r}")
+    return step
+
+
 def outputs(text: str | None) -> tuple[str, ...] | None:
     """The channels of a comma-separated ``--outputs`` value; ``None`` (the library's default) when not given."""
     return None if not text else tuple(c.strip() for c in text.split(",") if c.strip())

@@ -7,7 +7,7 @@ import json
 import os
 from pathlib import Path
 
-from ._options import OldForm, add_data_option, add_quiet_option, adopt_as_data
+from ._options import OldForm, add_data_option, add_quiet_option, adopt_as_data, fit_step
 
 
 def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -39,7 +39,7 @@ def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                    help="methods timed from flight A to a model, compilation included (none: skip)")
     p.add_argument("--model-iterations", type=int, default=1000, help="generations of the timed population methods")
     p.add_argument("--pem-steps", type=int, default=200, help="Levenberg-Marquardt steps of the timed PEM")
-    p.add_argument("--model-fit-dt", nargs="+", default=["full"], metavar="STEP",
+    p.add_argument("--model-fit-dt", nargs="+", type=fit_step, default=["full"], metavar="STEP",
                    help="fit steps each timed identify method runs at, once each: full (default), auto (a low-passed "
                         "flight's bandwidth step) or seconds (identify --fit-dt)")
     p.add_argument("--forms", nargs="+", default=["auto"], choices=["auto", "scan", "parallel"],
@@ -98,7 +98,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                      model_iterations=args.model_iterations, pem_steps=args.pem_steps, quick=args.quick,
                      settings={k: v for k, v in vars(args).items() if k != "func"}, forms=args.forms,
                      form_samples=args.form_samples, form_sizes=args.form_sizes, costs=args.costs,
-                     model_fit_dts=[d if d in ("full", "auto") else float(d) for d in args.model_fit_dt])
+                     model_fit_dts=args.model_fit_dt)
     paths = write_bench(result, args.out)
     print(markdown(result))
     print(f"wrote {', '.join(map(str, paths))}")

@@ -15,7 +15,7 @@ from ..optim.frequency_fit import MAX_STEPS as FREQ_STEPS, STARTS as FREQ_STARTS
 from ..optim.polish import POLISH_OBJECTIVES
 from ..stages import METHODS, PRIOR_SD, used_by, uses
 from ._options import (add_data_option, add_flight_option, add_load_options, add_quiet_option, add_sim_options,
-                       outputs, read_flight, sim_options)
+                       fit_step, outputs, read_flight, sim_options)
 from .verify import print_modes, print_verification
 
 
@@ -91,7 +91,7 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                    help=f"freq: Levenberg-Marquardt step limit of each start (default {_FREQ_DEFAULTS['max_steps']})")
     p.add_argument("--freq-band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                    help="freq: fitted band, Hz (default 0.1 Hz to a third of Nyquist, at most 10 Hz)")
-    p.add_argument("--fit-dt", type=_fit_dt, default=None, metavar="S",
+    p.add_argument("--fit-dt", type=fit_step, default=None, metavar="S",
                    help="step the fit runs at, s: 'auto' (a flight low-passed by jaxheli prepare --lowpass at a "
                         "step of about 1 / (8 x its cut-off), the others at their own), 'full' (default: every "
                         "flight at its own step) or seconds (the flight must be low-passed below that step's "
@@ -100,19 +100,6 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     add_quiet_option(p)
     p.set_defaults(func=_cmd_identify)
     return p
-
-
-def _fit_dt(text: str) -> float | str:
-    """``--fit-dt``'s value: ``auto``, ``full`` or a positive step in seconds."""
-    if text in ("auto", "full"):
-        return text
-    try:
-        step = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected 'auto', 'full' or seconds, got {text!r}") from None
-    if not step > 0.0:
-        raise argparse.ArgumentTypeError(f"a step must be positive, got {text!r}")
-    return step
 
 
 def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:

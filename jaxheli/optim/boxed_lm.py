@@ -248,9 +248,10 @@ def boxed_least_squares(
        most ``max_steps``: one program for every limit; default ``max_steps``);
     2. where that answer lies outside the box: from it clipped into the box, steps kept in the box (margin 0), at
        most ``settle`` steps (default :data:`SETTLE_STEPS`) and the steps the first pass left of ``limit`` (the
-       limit holds for both). ``settle=0`` keeps the clipped answer: for residuals that are a function of the
-       clipped point already (a diagnosis's effect fits), it has the solver's own residuals and no penalty. Of the clipped answer and this one, the lower penalised sum of
-       squares is the answer: it lies in the box and scores no worse than the clipped first answer.
+       limit holds for both). Of the clipped answer and this one, the lower penalised sum of squares is the
+       answer: it lies in the box and scores no worse than the clipped first answer. ``settle=0`` keeps the
+       clipped answer: for residuals that are a function of the clipped point already (a diagnosis's effect
+       fits), it has the solver's own residuals and no penalty.
 
     The start is kept unless the answer is finite and scores no worse. ``score(u0, answer, args)`` gives the objective
     at both ``[2]`` and whatever else it computed with them (:attr:`BoxedSolution.aux`); by default the penalised
