@@ -287,8 +287,26 @@ def render_recipes(rec: dict) -> str:
             "*fit s*: wall seconds of the fit on this machine.\n\n" + _table(header, body))
 
 
+def render_long_log(rec: dict) -> str:
+    """``benchmarks/long_log.py``: each step's wall seconds and peak memory per flight length, and the longest
+    flight's time over the shortest's."""
+    out = rec["output"]
+    steps = list(out["rows"][0]["steps"])
+    header = ["flight", "samples"] + [f"{s} s" for s in steps] + ["total s"] + [f"{s} peak MB" for s in steps]
+    rows = [[f"{r['minutes']:g} min at {r['rate_hz']:g} Hz", r["samples"]]
+            + [_num(r["steps"][s]["seconds"], 4) for s in steps]
+            + [_num(sum(r["steps"][s]["seconds"] for s in steps), 4)]
+            + [_num(r["steps"][s]["peak_mb"], 4) for s in steps] for r in out["rows"]]
+    ratios = ", ".join(f"{s} {_num(out['time_ratio'][s])}x" for s in steps)
+    settings = " ".join(out["settings"]["identify"])
+    return (f"Each step a fresh process, as the command line runs it (`jaxheli identify {settings}`, the default method; `jaxheli verify` over 5-s runs and one whole run on a second flight). A "
+            f"{_num(out['length_ratio'])}x longer record takes **{_num(out['total_time_ratio'])}x** the time "
+            f"({ratios}); peak resident memory of any step **{_num(out['peak_mb'], 4)} MB**.\n\n"
+            + _table(header, rows))
+
+
 RENDERERS = {"identify": render_identify, "verify": render_verify, "truth_forms": render_truth_forms,
-             "suite_time": render_suite_time, "recipes": render_recipes}
+             "suite_time": render_suite_time, "recipes": render_recipes, "long_log": render_long_log}
 """How each kind of record is drawn; a new kind (e.g. ``bench.json``) needs its renderer here."""
 
 INTRO = """# Benchmarks

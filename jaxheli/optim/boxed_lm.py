@@ -6,8 +6,9 @@ free. Both solvers are optimistix's Gauss-Newton family (:class:`optimistix.Abst
 trust-region acceptance and Cauchy termination) with one descent, :class:`BoxedDampedNewton`:
 
 1. at each accepted point it materialises the Jacobian ``J`` (forward mode: one batched tangent per unknown, no
-   transpose), ``J^T J``, the gradient ``g = J^T r`` and the axes held by the gradient: bounded axes at a bound
-   whose gradient points out of the box, and unknowns no residual depends on (a zero column). They take no step;
+   transpose; for a long record a chunk of unknowns at a time, :mod:`jaxheli.optim.jacobian`), ``J^T J``, the
+   gradient ``g = J^T r`` and the axes held by the gradient: bounded axes at a bound whose gradient points out of
+   the box, and unknowns no residual depends on (a zero column). They take no step;
 2. each trial step minimises the damped Gauss-Newton model ``|r + J d|^2 + lambda |d|^2`` on the other axes
    (``lambda = 1 / step_size``, as :class:`optimistix.LevenbergMarquardt`; Gauss-Newton: ``lambda = 0`` and a
    pseudo-inverse), then moves the axes that ``d`` carries out of the box to their bound, holds them there and
@@ -38,6 +39,7 @@ import optimistix as optx
 
 from .._types import Array, Bool, Float, Int
 from ..bounds import Bounds
+from .jacobian import jacobian_transpose
 
 Solver = Literal["lm", "gn"]
 
@@ -74,12 +76,12 @@ class BoxedDampedNewton(optx.AbstractDescent):
         self, y: Float[Array, " n"], f_info: optx.FunctionInfo.ResidualJac, state: _DescentState
     ) -> _DescentState:
         del state
-        jac = f_info.jac.as_matrix()
-        grad = jac.T @ f_info.residual
+        jac_t = jacobian_transpose(f_info.jac.mv, y.shape[0], f_info.residual.shape[0], y.dtype)
+        grad = jac_t @ f_info.residual
         bounded = jnp.arange(y.shape[0]) < self.n_bounded
         lo, hi = -self.margin, 1.0 + self.margin
-        free = ~(bounded & (((y <= lo) & (grad > 0.0)) | ((y >= hi) & (grad < 0.0)))) & jnp.any(jac != 0.0, axis=0)
-        return _DescentState(y, free, jac.T @ jac, grad)
+        free = ~(bounded & (((y <= lo) & (grad > 0.0)) | ((y >= hi) & (grad < 0.0)))) & jnp.any(jac_t != 0.0, axis=1)
+        return _DescentState(y, free, jac_t @ jac_t.T, grad)
 
     def _solve(
         self, state: _DescentState, lam: Float[Array, ""], free: Bool[Array, " n"], fixed: Float[Array, " n"]

@@ -1,7 +1,8 @@
 """Cramer-Rao-style standard errors at an optimum, and which parameters a flight can identify.
 
 Linearised least squares: with ``J`` the Jacobian of the residual vector over the free parameters
-(physical units, :func:`jax.jacfwd`) and ``s^2 = RSS / (N_res - rank J - n_nuisance)``, ``cov = s^2 (J^T J)^+``
+(physical units, forward mode: :func:`jaxheli.optim.jacobian.residuals_and_jacobian`) and
+``s^2 = RSS / (N_res - rank J - n_nuisance)``, ``cov = s^2 (J^T J)^+``
 (``n_nuisance``: unknowns eliminated inside the residuals, e.g. 13 per run whose initial state is estimated by
 variable projection, :mod:`jaxheli.sim.shooting`; the Jacobian of the projected residuals marginalises them)
 (``rank J = n_free`` when every free parameter is resolved; an unresolved direction costs no degree of
@@ -23,7 +24,6 @@ from collections.abc import Callable
 from typing import Any, Literal
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -34,6 +34,7 @@ from ..data.flight import FlightData
 from ..model import N_PARAMS, N_STATES, PARAM_NAMES
 from ..problem import Problem, Records, parts
 from ..sim.shooting import run_count
+from .jacobian import residuals_and_jacobian
 from .pem import PEM_DEFAULTS, fitted_problem, residuals
 
 
@@ -98,11 +99,11 @@ def _json(x: float) -> float | str:
 
 @quick_jit
 def _jacobian(fn: Callable[[Array], Array], theta: Array, idx: Array) -> tuple[Array, Array]:
-    """Residuals and their Jacobian over ``theta[idx]`` (forward mode)."""
+    """Residuals and their Jacobian over ``theta[idx]`` (forward mode, :mod:`jaxheli.optim.jacobian`)."""
     def of_free(v):
         return fn(theta.at[idx].set(v))
 
-    return of_free(theta[idx]), jax.jacfwd(of_free)(theta[idx])
+    return residuals_and_jacobian(of_free, theta[idx])
 
 
 def from_residuals(
