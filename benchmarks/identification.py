@@ -27,7 +27,8 @@ in-sample ceiling there (what no model trained elsewhere is expected to exceed w
 :data:`jaxheli.model.WIDE_LOWER` / ``WIDE_UPPER``: ``jaxheli identify --box wide``), ``structure`` (model-structure
 determination after the fit: ``--structure``), ``prior`` (a Gaussian prior toward ``--prior``, default Table 2,
 in the local fits: ``--prior table2``) and ``bandwidth`` (the fit at the low-passed record's bandwidth step,
-:func:`jaxheli.data.preprocess.bandwidth_step`: ``--fit-dt auto``). Every row is labelled held out or in-sample
+:func:`jaxheli.data.preprocess.bandwidth_step`: ``--fit-dt auto``) and ``foh`` (the sticks held first-order between
+samples, in the fit and in its scores: ``--hold foh``). Every row is labelled held out or in-sample
 (Table 2's: unknown, its training flight is not recorded), with the seconds of its fit and the model's unstable modes (eigenvalues of the
 continuous ``A`` with positive real part, :func:`jaxheli.modes.modes`).
 
@@ -80,7 +81,7 @@ RUN_S = 5.0
 """Verification run length, s (issue 35's measure: each run from its least-squares start with a per-channel bias)."""
 
 
-RECIPE_PARTS = ("physical", "structure", "prior", "bandwidth")
+RECIPE_PARTS = ("physical", "structure", "prior", "bandwidth", "foh")
 """What a recipe (``--recipes``) may join with ``+``; ``default`` is none of them."""
 
 
@@ -178,6 +179,8 @@ def recipe_options(recipe: str, prior: str | None, prior_sd: float) -> dict:
         options.update(prior=prior or "table2", prior_sd=prior_sd)
     if "bandwidth" in parts:
         options["fit_dt"] = "auto"
+    if "foh" in parts:
+        options["hold"] = "foh"
     return options
 
 
@@ -232,12 +235,13 @@ def _real_fit(args: argparse.Namespace, train_label: str, train: jaxheli.FlightD
     print(f"{train_label} {recipe} {name}: {seconds:.0f} s", flush=True)
     samples = {label: _sample(train_label, label) for label in validations}
     return [{**found, "validate": label, "held_out": samples[label] == "held out", "sample": samples[label],
-             **_real_scores(res.params, validation)} for label, validation in validations.items()]
+             **_real_scores(res.params, validation, options.get("hold", "zoh"))}
+            for label, validation in validations.items()]
 
 
-def _real_scores(params: np.ndarray, flight: jaxheli.FlightData) -> dict:
-    block = validation_block(params, flight, REAL_CHANNELS)
-    runs = verify(params, flight, run_length=RUN_S).pooled
+def _real_scores(params: np.ndarray, flight: jaxheli.FlightData, hold: str = "zoh") -> dict:
+    block = validation_block(params, flight, REAL_CHANNELS, hold=hold)
+    runs = verify(params, flight, run_length=RUN_S, hold=hold).pooled
     return {"estimated": _metrics(block), "zero": _metrics(block["zero_initial_state"]), "runs": _metrics(runs)}
 
 

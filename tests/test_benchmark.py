@@ -73,17 +73,33 @@ def test_quick_bench_writes_json_markdown_and_plot(tmp_path):
     assert iwo_row["time_form"] == "auto" and "plain scan against the parallel form" in text
 
 
-def _gpu_script():
-    spec = importlib.util.spec_from_file_location("gpu_script", ROOT / "benchmarks" / "gpu.py")
+def _script(name):
+    """The module of ``benchmarks/<name>.py``."""
+    spec = importlib.util.spec_from_file_location(f"{name}_script", ROOT / "benchmarks" / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
 
 
+def test_identification_recipes_map_to_identify_options():
+    """Each part of a recipe of benchmarks/identification.py sets its identify option, and only that one; an unknown
+    or repeated part is refused."""
+    recipes = _script("identification")
+    default = recipes.recipe_options("default", None, 50.0)
+    assert set(default) == {"lower", "upper"}
+    both = recipes.recipe_options("bandwidth+foh", None, 50.0)
+    assert both["hold"] == "foh" and both["fit_dt"] == "auto" and set(both) == {"lower", "upper", "hold", "fit_dt"}
+    assert np.array_equal(both["lower"], default["lower"])
+    assert "hold" not in recipes.recipe_options("bandwidth", None, 50.0)
+    for bad in ("fast", "foh+foh"):
+        with pytest.raises(ValueError, match="recipe"):
+            recipes.recipe_options(bad, None, 50.0)
+
+
 @pytest.mark.parametrize("sizes", ["FULL", "TINY"])
 def test_gpu_script_steps_are_valid_commands(sizes):
     """Every command benchmarks/gpu.py runs parses with jaxheli's own parser (a typo would cost a GPU run)."""
-    gpu = _gpu_script()
+    gpu = _script("gpu")
     steps = getattr(gpu, sizes)
     assert set(steps) == set(gpu.CAPS) - {"install"}
     for name, arguments in steps.items():
