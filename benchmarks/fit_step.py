@@ -47,7 +47,7 @@ def main() -> None:
         fit = identify(flight if step == flight.dt else resample(flight, step), method="pem", start=start, hold=hold)
         full.setdefault(hold, fit)
         fitted = scores(fit.params, scored)["fit_percent"]
-        own = scores(fit.params, scored.variant(hold=hold))["fit_percent"]
+        own = fitted if hold == "zoh" else scores(fit.params, scored.variant(hold=hold))["fit_percent"]
         distance = {ref: _distance(fit, full[ref]) for ref in ("zoh", hold)}
         rows.append({"step_s": step, "hold": hold, "converged": fit.convergence["converged"],
                      "fit_percent": {c: fitted[c] for c in CHANNELS},
