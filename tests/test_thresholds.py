@@ -17,7 +17,7 @@ NAMES = ("MIN_SHRINK", "MIN_Z", "SIG_SIGMA", "EFFECT_SIGMA", "LARGE_SHRINK", "HE
 def test_every_value_comes_with_the_commit_and_seeds_that_set_it():
     data = json.loads(th.FILE.read_text())
     for name, entry in data["thresholds"].items():
-        assert entry["set_by"] and entry["seeds"] and isinstance(entry["value"], str if name == "restart" else float), name
+        assert entry["set_by"] and entry["seeds"] and isinstance(entry["value"], str if name in ("restart", "recheck") else float), name
         assert getattr(th.THRESHOLDS, name) == entry["value"]
     assert th.THRESHOLDS.protocol.test_from > th.THRESHOLDS.protocol.calibration[1]
 

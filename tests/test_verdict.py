@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from jaxheli.cli.diagnosis_text import verdict_line
+from jaxheli.bounds import Bounds
 from jaxheli.gap.candidate_records import Refit, Structure
 from jaxheli.gap.fit_effect import EffectFit
 from jaxheli.gap.significance import HeldOut, shrink_entries
@@ -160,3 +161,37 @@ def test_no_module_of_the_gap_package_words_a_command_line_option():
             if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docs:
                 found += [f"{path.name}:{node.lineno}: {m}" for m in _OPTION.findall(node.value)]
     assert not found, found
+
+
+@pytest.mark.parametrize("recheck", ["significant", "all"])
+def test_the_staged_ranking_re_checks_beyond_the_structure_what_its_rule_names(monkeypatch, recheck):
+    """Beyond a significant structure (45 %): a saturation that shrinks the gap further (50 %) is kept without a
+    re-check; a delay significant in the box but not beyond it is dropped; a lag not significant in the box but
+    significant beyond it is ranked again and named only when every candidate is re-checked (``"all"``)."""
+    from jaxheli.gap import ranking
+    from jaxheli.gap.candidates import Ranked
+
+    delay, lag, saturation = _entries()
+    box = [dataclasses.replace(delay, shrink_pct=10.0), dataclasses.replace(lag, shrink_pct=3.0, significant=False),
+           dataclasses.replace(saturation, shrink_pct=50.0)]
+    beyond = {"input_delay": dataclasses.replace(delay, significant=False), "actuator_lag": lag}
+    asked = []
+
+    def fake_ranked(train, validate, theta, labels, arrays, owner, max_steps, min_shrink, box_):
+        if theta == "beyond":
+            asked.append(list(labels))
+            assert [len(a) for a in arrays] == [len(owner)] * 4 and sorted(set(owner)) == list(range(len(labels)))
+            return Ranked([beyond[name] for name in labels], None, None, None, None)
+        return Ranked(box, None, None, None, None)
+
+    monkeypatch.setattr(ranking, "ranked", fake_ranked)
+    monkeypatch.setattr(ranking, "structure_hypothesis", lambda *a: dataclasses.replace(_structure(45.0), theta="beyond"))
+    monkeypatch.setattr(ranking, "theta_box", lambda theta, box_: box_)
+    monkeypatch.setattr(ranking, "RECHECK", recheck)
+    arrays = tuple(np.arange(6)[:, None] for _ in range(4))
+    found = ranking.staged(None, None, "box", ["input_delay", "actuator_lag", "control_saturation"], arrays,
+                           np.array([0, 0, 1, 1, 2, 2]), 15, 5.0, Bounds())
+    named = {e.effect for e in found.ranked.entries if e.significant}
+    assert asked == [["input_delay"] if recheck == "significant" else ["input_delay", "actuator_lag"]]
+    assert named == ({"control_saturation"} if recheck == "significant" else {"control_saturation", "actuator_lag"})
+    assert [e.effect for e in found.recheck] == asked[0]

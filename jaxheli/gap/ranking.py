@@ -41,6 +41,7 @@ from .records import Attribution
 from .reference import theta_box
 from .significance import MIN_SHRINK
 from .structure import physical_box, structure_hypothesis
+from .thresholds import THRESHOLDS
 from .verdict import explains_more, structure_leads as structure_leads
 
 
@@ -59,6 +60,19 @@ class Staged(NamedTuple):
     box: Bounds | None
 
 
+RECHECKS: tuple[str, ...] = ("significant", "all")
+"""Which candidates :func:`staged` ranks again beyond a significant structure: those significant in the box, or every
+one (:data:`RECHECK`)."""
+
+RECHECK = THRESHOLDS.recheck
+"""(Read from the thresholds file, :mod:`jaxheli.gap.thresholds`.) ``"significant"``: the effects significant in the
+box are ranked again beyond the structure and stay significant where they are in both rankings; ``"all"``: every
+candidate is, and is significant where it is beyond the structure (an effect the base model's box hid is credited
+by what it explains beyond the widened base)."""
+
+if RECHECK not in RECHECKS:
+    raise ValueError(f"{THRESHOLDS.source}: unknown recheck {RECHECK!r}; rechecks are {RECHECKS}")
+
 RECHECK_ROWS = 4
 """The re-check's candidate rows are padded to a multiple of this, so its solver compiles for few batch shapes."""
 
@@ -73,7 +87,8 @@ def staged(
     hypothesis is significant (the re-fit left the box and shrinks the gap), the effects significant in the box are
     ranked again from it, in those ranges, and an effect stays significant only where it is in both rankings: a real
     effect does not hinge on the base model's box, while one that stood in for a pinned or bounded parameter, or for
-    the misfit of a base stuck in another optimum, changes with it. A re-fit that left the
+    the misfit of a base stuck in another optimum, changes with it (with :data:`RECHECK` ``"all"``, every effect is
+    ranked again and judged beyond the structure alone). A re-fit that left the
     box without predicting the validation flight better says nothing against the box's ranking, and effects ranked
     again from it are judged from a worse base. An effect that shrinks the gap in the box at least as far as the structure
     does is not re-checked (:func:`explains_more`)."""
@@ -82,8 +97,10 @@ def staged(
         return Staged(first, None, None, (), None)
     hypothesis = structure_hypothesis(train, validate, first.reference, first.scored, first.credited, box, max_steps,
                                       min_shrink)
-    chosen = [c for c, name in enumerate(labels)
-              if any(e.significant and e.effect == name and not explains_more(e, hypothesis) for e in first.entries)]
+    kept = {e.effect for e in first.entries if e.significant and explains_more(e, hypothesis)}
+    every = RECHECK == "all"
+    chosen = [c for c, name in enumerate(labels) if name not in kept
+              and (every or any(e.significant and e.effect == name for e in first.entries))]
     if hypothesis is None or not hypothesis.significant or not chosen:
         return Staged(first, first.refit, hypothesis, (), box)
     rows = np.flatnonzero(np.isin(owner, chosen))
@@ -95,7 +112,7 @@ def staged(
                        theta_box(hypothesis.theta, physical_box(box)))
         both = {e.effect for e in again.entries if e.significant}
         now.outcome = f"significant in both boxes: {', '.join(sorted(both)) or 'none'}"
-    entries = [dataclasses.replace(e, significant=e.significant and (e.effect in both or explains_more(e, hypothesis)),
+    entries = [dataclasses.replace(e, significant=e.effect in kept or (e.effect in both and (every or e.significant)),
                                    tied_with=tuple(t for t in e.tied_with if t in both)) for e in first.entries]
     return Staged(first._replace(entries=entries), first.refit, hypothesis, tuple(again.entries), box)
 

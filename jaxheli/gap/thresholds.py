@@ -93,6 +93,7 @@ class Thresholds:
     settled_pct: float
     start_tie_pct: float
     left_box: float
+    recheck: str
     restart: str
     segment_s: float
     sample_s: float
