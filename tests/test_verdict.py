@@ -143,6 +143,9 @@ def test_the_record_says_what_was_found():
     beyond = find(*c["effect_beyond_structure"])
     assert beyond.structure is None and beyond.outshrinks is c["effect_beyond_structure"][2]
     assert find(*c["structure_only"]).effect is None and find(*c["idle_structure"]).structure is None
+    ranked, refit, structure, _ = c["structure_then_effect"]
+    again = (dataclasses.replace(ranked[1], shrink_pct=30.0), dataclasses.replace(ranked[0], shrink_pct=21.5))
+    assert find(ranked, refit, structure, again).effect is again[0]  # the one that explains most beyond it
 
 
 _OPTION = re.compile(r"(?<![\\w-])--[a-z][a-z-]+")
@@ -163,18 +166,21 @@ def test_no_module_of_the_gap_package_words_a_command_line_option():
     assert not found, found
 
 
-@pytest.mark.parametrize("recheck", ["significant", "all"])
-def test_the_staged_ranking_re_checks_beyond_the_structure_what_its_rule_names(monkeypatch, recheck):
-    """Beyond a significant structure (45 %): a saturation that shrinks the gap further (50 %) is kept without a
-    re-check; a delay significant in the box but not beyond it is dropped; a lag not significant in the box but
-    significant beyond it is ranked again and named only when every candidate is re-checked (``"all"``)."""
+@pytest.mark.parametrize("recheck, leads", [("significant", 30.0), ("all", 30.0), ("significant", 50.0), ("all", 50.0)])
+def test_the_staged_ranking_re_checks_beyond_the_structure_what_its_rule_names(monkeypatch, recheck, leads):
+    """Beyond a significant structure (45 %): a delay significant in the box but not beyond it is dropped; a lag not
+    significant in the box but significant beyond it is ranked again and named only when every candidate is
+    re-checked (``"all"``); a saturation significant in both stays named. A saturation that shrinks the gap further
+    than the structure (``leads`` 50 %) is kept without a re-check, and then, under ``"all"``, the box's ranking
+    stands (the structure is not the leading hypothesis)."""
     from jaxheli.gap import ranking
     from jaxheli.gap.candidates import Ranked
 
     delay, lag, saturation = _entries()
     box = [dataclasses.replace(delay, shrink_pct=10.0), dataclasses.replace(lag, shrink_pct=3.0, significant=False),
-           dataclasses.replace(saturation, shrink_pct=50.0)]
-    beyond = {"input_delay": dataclasses.replace(delay, significant=False), "actuator_lag": lag}
+           dataclasses.replace(saturation, shrink_pct=leads)]
+    beyond = {"input_delay": dataclasses.replace(delay, significant=False), "actuator_lag": lag,
+              "control_saturation": saturation}
     asked = []
 
     def fake_ranked(train, validate, theta, labels, arrays, owner, max_steps, min_shrink, box_):
@@ -192,6 +198,10 @@ def test_the_staged_ranking_re_checks_beyond_the_structure_what_its_rule_names(m
     found = ranking.staged(None, None, "box", ["input_delay", "actuator_lag", "control_saturation"], arrays,
                            np.array([0, 0, 1, 1, 2, 2]), 15, 5.0, Bounds())
     named = {e.effect for e in found.ranked.entries if e.significant}
-    assert asked == [["input_delay"] if recheck == "significant" else ["input_delay", "actuator_lag"]]
-    assert named == ({"control_saturation"} if recheck == "significant" else {"control_saturation", "actuator_lag"})
-    assert [e.effect for e in found.recheck] == asked[0]
+    expected = {("significant", 30.0): (["input_delay", "control_saturation"], {"control_saturation"}),
+                ("all", 30.0): (["input_delay", "actuator_lag", "control_saturation"],
+                                {"actuator_lag", "control_saturation"}),
+                ("significant", 50.0): (["input_delay"], {"control_saturation"}),
+                ("all", 50.0): (None, {"input_delay", "control_saturation"})}[recheck, leads]
+    assert (asked or [None]) == [expected[0]] and named == expected[1]
+    assert [e.effect for e in found.recheck] == (expected[0] or [])

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..gap.ranking import RECHECK
 from ..gap.records import Diagnosis
 from ..gap.verdict import Verdict, still_converging, under_fitted
 
@@ -49,7 +50,8 @@ def ranking_table(diagnosis: Diagnosis) -> list[str]:
         lines.append(_row(e.effect, e.shrink_pct, e.shrink_se_pct, mark, [e.shrink_by_channel[n] for n in names],
                           e.fitted.summary))
     if found.recheck:
-        lines.append("  re-checked beyond the structure, in the physical ranges (significant above only if here too):")
+        rule = "where significant here" if RECHECK == "all" else "only if here too"
+        lines.append(f"  re-checked beyond the structure, in the physical ranges (significant above {rule}):")
         lines += [_row(e.effect, e.shrink_pct, e.shrink_se_pct, "*" if e.significant else "",
                        [e.shrink_by_channel[n] for n in names], e.fitted.summary) for e in found.recheck]
     return lines

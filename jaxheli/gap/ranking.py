@@ -49,8 +49,8 @@ class Staged(NamedTuple):
     """The ranking and the base model's structure (:func:`staged`): ``ranked`` the ranking in the given box (an
     effect significant only where it stayed so beyond the structure), ``refit`` the given base re-fitted alone in
     that box (``None``: frozen base), ``structure`` the hypothesis
-    (:func:`~jaxheli.gap.structure.structure_hypothesis`), ``recheck`` the entries of the effects significant in the
-    box ranked again beyond the structure, in the physical ranges (empty when not re-checked), and the ``box`` the
+    (:func:`~jaxheli.gap.structure.structure_hypothesis`), ``recheck`` the entries of the effects ranked again beyond
+    the structure, in the physical ranges (:data:`RECHECK`; empty when not re-checked), and the ``box`` the
     ranking kept the base parameters in."""
 
     ranked: Ranked
@@ -87,8 +87,9 @@ def staged(
     hypothesis is significant (the re-fit left the box and shrinks the gap), the effects significant in the box are
     ranked again from it, in those ranges, and an effect stays significant only where it is in both rankings: a real
     effect does not hinge on the base model's box, while one that stood in for a pinned or bounded parameter, or for
-    the misfit of a base stuck in another optimum, changes with it (with :data:`RECHECK` ``"all"``, every effect is
-    ranked again and judged beyond the structure alone). A re-fit that left the
+    the misfit of a base stuck in another optimum, changes with it. With :data:`RECHECK` ``"all"``, every effect is
+    ranked again and judged beyond the structure alone, unless one already shrinks the gap at least as far as the
+    structure: the structure is then not the leading hypothesis, and the box's ranking stands. A re-fit that left the
     box without predicting the validation flight better says nothing against the box's ranking, and effects ranked
     again from it are judged from a worse base. An effect that shrinks the gap in the box at least as far as the structure
     does is not re-checked (:func:`explains_more`)."""
@@ -101,7 +102,7 @@ def staged(
     every = RECHECK == "all"
     chosen = [c for c, name in enumerate(labels) if name not in kept
               and (every or any(e.significant and e.effect == name for e in first.entries))]
-    if hypothesis is None or not hypothesis.significant or not chosen:
+    if hypothesis is None or not hypothesis.significant or not chosen or (every and kept):
         return Staged(first, first.refit, hypothesis, (), box)
     rows = np.flatnonzero(np.isin(owner, chosen))
     rows = np.r_[rows, np.full(-len(rows) % RECHECK_ROWS, rows[-1])]

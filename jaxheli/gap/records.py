@@ -29,9 +29,9 @@ class Attribution:
     the significant effects (``None`` unless two or more); the base re-fitted alone (``None``: frozen base); the
     best significant effect re-identified on both flights (``None`` without one, or frozen); the
     restart filter's level every fit used; the base model's structure as a hypothesis (``None``: frozen base, or
-    a box that already holds the physical ranges); the effects significant in the box ranked again beyond the
-    structure, in the physical ranges (``recheck``, :func:`~jaxheli.gap.ranking.staged`: an effect stays significant
-    only where it is in both). What they add up to: :attr:`verdict`."""
+    a box that already holds the physical ranges); the effects ranked again beyond the structure, in the physical
+    ranges (``recheck``, :func:`~jaxheli.gap.ranking.staged`: where an effect is
+    significant beyond the structure, :data:`~jaxheli.gap.ranking.RECHECK`). What they add up to: :attr:`verdict`."""
 
     ranking: tuple[Entry, ...]
     combination: Entry | None

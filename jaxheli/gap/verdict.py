@@ -69,14 +69,17 @@ def find(
 ) -> Verdict:
     """The verdict of a ``ranking`` (best first), the base re-fitted alone (``refit``, ``None``: frozen base), the
     base model's ``structure`` (:func:`~jaxheli.gap.structure.structure_hypothesis`) and the entries ranked again
-    beyond it (``recheck``, :func:`~jaxheli.gap.ranking.staged`)."""
+    beyond it (``recheck``, best first, :func:`~jaxheli.gap.ranking.staged`). When the structure is named, the effect
+    named is the significant one that shrinks the gap furthest beyond it."""
     if refit is not None and not refit.settled:
         return Verdict(under_fitted=refit)
     best = next((e for e in ranking if e.significant), None)
     named = structure_leads(ranking, structure)
     effect = best
     if best is not None and named:
-        effect = next((r for r in recheck if r.effect == best.effect), best)
+        significant = {e.effect for e in ranking if e.significant}
+        effect = next((r for r in recheck if r.effect in significant), best)
+        best = next(e for e in ranking if e.effect == effect.effect)
     return Verdict(
         under_fitted=refit if refit is not None and refit.under_fitted else None,
         structure=structure if named else None,
