@@ -216,6 +216,28 @@ def test_a_truth_outside_the_default_box_is_named_as_structure_not_an_effect():
     assert back.summary == s.summary and back.shrink_pct == s.shrink_pct and np.array_equal(back.theta, s.theta)
 
 
+def test_a_servo_lag_beyond_the_structure_of_a_truth_outside_the_box_is_still_named():
+    """The truth of the test above (``Nw`` = 2, outside the authors' box) with a one-axis servo of the independent
+    simulator on lon (second order, 2 zeta / wn = 196 ms, rate-limited, with backlash; the first lon draw of 150 ms
+    or more), the base identified by PEM in the box: the verdict names the base model's structure first and, beyond
+    it, the lon servo as a delay or a lag (the candidates the blind check counts as right), lon its largest axis."""
+    truth = np.array(TABLE2)
+    truth[PARAM_NAMES.index("Nw")] = 2.0
+    trial = independent_trial("servo_dynamics", 7, truth, style="doublets", strength=2.0, duration=20.0, dt=DT)
+    servo = trial.train.metadata["effects"]["servo"]
+    assert np.isfinite(servo["wn"][1]) and not np.isfinite(np.delete(servo["wn"], 1)).any()
+    base = pem(trial.train, max_steps=100, outputs=OUT).theta
+    found = diagnose(base, trial.train, trial.validate, **OPTIONS).attribution
+    verdict = found.verdict
+    assert verdict.structure is found.structure and found.structure.significant, verdict
+    effect = verdict.effect
+    assert effect is not None and effect.effect in trial.candidates and effect.significant, verdict
+    group = "delay" if effect.effect == "input_delay" else "lag"
+    sizes = {a: abs(effect.fitted.params[f"{group}_{a}"].value) for a in ("lat", "lon", "ped", "col")}
+    assert max(sizes, key=sizes.get) == "lon" and sizes["lon"] > 0.05, sizes
+    assert any(effect is e for e in found.recheck) and "beyond that, " + effect.effect in str(verdict)
+
+
 def test_shared_outputs_and_bad_channels():
     a, b = _flight(0.0, 3, 0.2), _flight(0.0, 4, 0.25)
     assert shared_outputs(a, b.select(("q", "u", "theta"))) == ("u", "q", "theta")
