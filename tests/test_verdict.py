@@ -179,6 +179,7 @@ def test_the_staged_ranking_re_checks_beyond_the_structure_what_its_rule_names(m
     delay, lag, saturation = _entries()
     box = [dataclasses.replace(delay, shrink_pct=10.0), dataclasses.replace(lag, shrink_pct=3.0, significant=False),
            dataclasses.replace(saturation, shrink_pct=leads)]
+    box.sort(key=lambda e: -e.shrink_pct)  # best first, as a ranking is
     beyond = {"input_delay": dataclasses.replace(delay, significant=False), "actuator_lag": lag,
               "control_saturation": saturation}
     asked = []
@@ -191,7 +192,8 @@ def test_the_staged_ranking_re_checks_beyond_the_structure_what_its_rule_names(m
         return Ranked(box, None, None, None, None)
 
     monkeypatch.setattr(ranking, "ranked", fake_ranked)
-    monkeypatch.setattr(ranking, "structure_hypothesis", lambda *a: dataclasses.replace(_structure(45.0), theta="beyond"))
+    structure = dataclasses.replace(_structure(45.0), theta="beyond")
+    monkeypatch.setattr(ranking, "structure_hypothesis", lambda *a: structure)
     monkeypatch.setattr(ranking, "theta_box", lambda theta, box_: box_)
     monkeypatch.setattr(ranking, "RECHECK", recheck)
     arrays = tuple(np.arange(6)[:, None] for _ in range(4))

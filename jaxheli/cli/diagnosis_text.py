@@ -50,7 +50,7 @@ def ranking_table(diagnosis: Diagnosis) -> list[str]:
         lines.append(_row(e.effect, e.shrink_pct, e.shrink_se_pct, mark, [e.shrink_by_channel[n] for n in names],
                           e.fitted.summary))
     if found.recheck:
-        rule = "where significant here" if RECHECK == "all" else "only if here too"
+        rule = "where it is significant here" if RECHECK == "all" else "only if here too"
         lines.append(f"  re-checked beyond the structure, in the physical ranges (significant above {rule}):")
         lines += [_row(e.effect, e.shrink_pct, e.shrink_se_pct, "*" if e.significant else "",
                        [e.shrink_by_channel[n] for n in names], e.fitted.summary) for e in found.recheck]

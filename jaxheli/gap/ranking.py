@@ -47,8 +47,8 @@ from .verdict import explains_more, structure_leads as structure_leads
 
 class Staged(NamedTuple):
     """The ranking and the base model's structure (:func:`staged`): ``ranked`` the ranking in the given box (an
-    effect significant only where it stayed so beyond the structure), ``refit`` the given base re-fitted alone in
-    that box (``None``: frozen base), ``structure`` the hypothesis
+    effect's significance as judged beyond the structure when it was re-checked, :data:`RECHECK`), ``refit`` the
+    given base re-fitted alone in that box (``None``: frozen base), ``structure`` the hypothesis
     (:func:`~jaxheli.gap.structure.structure_hypothesis`), ``recheck`` the entries of the effects ranked again beyond
     the structure, in the physical ranges (:data:`RECHECK`; empty when not re-checked), and the ``box`` the
     ranking kept the base parameters in."""
@@ -84,15 +84,14 @@ def staged(
     """The candidates ``labels`` (rows ``arrays``, candidate ``owner[r]`` for row ``r``; rows of further candidates
     after them, e.g. an oracle's, are fitted and scored too) ranked in ``box`` (:func:`ranked`), then, re-identified
     jointly, the base model's structure as the first hypothesis: its re-fit in the physical ranges. When that
-    hypothesis is significant (the re-fit left the box and shrinks the gap), the effects significant in the box are
-    ranked again from it, in those ranges, and an effect stays significant only where it is in both rankings: a real
-    effect does not hinge on the base model's box, while one that stood in for a pinned or bounded parameter, or for
-    the misfit of a base stuck in another optimum, changes with it. With :data:`RECHECK` ``"all"``, every effect is
-    ranked again and judged beyond the structure alone, unless one already shrinks the gap at least as far as the
-    structure: the structure is then not the leading hypothesis, and the box's ranking stands. A re-fit that left the
-    box without predicting the validation flight better says nothing against the box's ranking, and effects ranked
-    again from it are judged from a worse base. An effect that shrinks the gap in the box at least as far as the structure
-    does is not re-checked (:func:`explains_more`)."""
+    hypothesis is significant (the re-fit left the box and shrinks the gap), effects are ranked again from it, in
+    those ranges (:data:`RECHECK`): under ``"all"`` every effect, significant where it is significant there, and
+    only while the structure leads (:func:`structure_leads`); under ``"significant"`` the effects significant in the
+    box, each staying significant only where it is in both rankings. A real effect does not hinge on the base
+    model's box, while one that stood in for a pinned or bounded parameter, or for the misfit of a base stuck in
+    another optimum, changes with it. A re-fit that left the box without predicting the validation flight better
+    says nothing against the box's ranking, and effects ranked again from it are judged from a worse base. An effect
+    that shrinks the gap in the box at least as far as the structure does is not re-checked (:func:`explains_more`)."""
     first = ranked(train, validate, theta, labels, arrays, owner, max_steps, min_shrink, box)
     if box is None:
         return Staged(first, None, None, (), None)
@@ -102,7 +101,8 @@ def staged(
     every = RECHECK == "all"
     chosen = [c for c, name in enumerate(labels) if name not in kept
               and (every or any(e.significant and e.effect == name for e in first.entries))]
-    if hypothesis is None or not hypothesis.significant or not chosen or (every and kept):
+    idle = every and not structure_leads(first.entries, hypothesis)  # an effect outshrinks the structure
+    if hypothesis is None or not hypothesis.significant or not chosen or idle:
         return Staged(first, first.refit, hypothesis, (), box)
     rows = np.flatnonzero(np.isin(owner, chosen))
     rows = np.r_[rows, np.full(-len(rows) % RECHECK_ROWS, rows[-1])]
