@@ -10,12 +10,14 @@ from jaxheli.model import STATE_NAMES, build_ab, output_indices
 GUST = ("u", "v", "w")
 
 
-def reference_prediction(theta, flight, segment=2.0, track=0.1, g=9.81, smooth=False, walk=None, biases=True):
+def reference_prediction(theta, flight, segment=2.0, track=0.1, g=9.81, smooth=False, walk=None, biases=True,
+                         revert=0.0):
     """Predicted outputs ``[N, k]`` of ``theta`` on ``flight`` (all its channels); ``smooth``: each segment's
     restart state then moved by the least squares of the segment's readings with the filter's covariance as its
     prior (normal equations, one segment at a time). Each channel's reading carries a random-walk bias of
     intensity ``walk[k]`` (unit per sqrt(s); ``None``: none, a variance floor of 1e-12 times the channel's noise
-    variance per sample), estimated by the filter, restarted with the state and held inside each segment, and
+    variance per sample) reverting at ``revert`` (1/s; 0: a random walk), estimated by the filter, restarted with the
+    state and decaying at that rate inside each segment (held at 0), and
     (``smooth``) anchored at zero in the first segment by a prior information of 1e6 times the channel's;
     ``biases=False``: no bias states at all."""
     A, B = (np.asarray(M) for M in build_ab(np.asarray(theta), g))
@@ -33,7 +35,8 @@ def reference_prediction(theta, flight, segment=2.0, track=0.1, g=9.81, smooth=F
     k = len(idx)
     b = k if biases else 0
     walk = np.zeros(k) if walk is None else np.asarray(walk, dtype=float)
-    F = scipy.linalg.block_diag(np.block([[Ad, Ed], [np.zeros((m, n)), rho * np.eye(m)]]), np.eye(b))
+    rho_bias = np.exp(-revert * dt)
+    F = scipy.linalg.block_diag(np.block([[Ad, Ed], [np.zeros((m, n)), rho * np.eye(m)]]), rho_bias * np.eye(b))
     G = np.vstack([Bd, np.zeros((m + b, 4))])
     H = np.hstack([C, np.zeros((k, m)), np.eye(k)[:, :b]])
     Q = np.diag(np.r_[track**2 * (C.T @ var) + 1e-12, np.full(m, 1e-12), (walk**2 * dt + 1e-12 * var)[:b]])
@@ -55,7 +58,7 @@ def reference_prediction(theta, flight, segment=2.0, track=0.1, g=9.81, smooth=F
             x, w = z[:n].copy(), z[n:n + m].copy()
             bias = z[n + m:].copy() if biases else bias
         else:
-            w = rho * w
+            w, bias = rho * w, rho_bias * bias
     if smooth:
         updated = P - P @ H.T @ np.linalg.solve(H @ P @ H.T + R, H @ P)
         for start in range(0, len(y) - 1, seg):

@@ -47,7 +47,7 @@ E = EFFECTS.size(OUT)
 
 def test_layout_is_the_historical_one():
     sizes = {"delay": 4, "lag": 4, "sat": 4, "drag": 4, "rotor": 2, "gust": 3, "mis": 6, "bias": K, "drift": K,
-             "walk": K}
+             "walk": K, "revert": 1}
     stops = np.cumsum(list(sizes.values()))
     assert layout(OUT) == {g: slice(int(stop - n), int(stop)) for (g, n), stop in zip(sizes.items(), stops)}
     expected = np.zeros(E)
@@ -66,7 +66,8 @@ def test_the_bias_walks_on_rates_and_attitudes_only():
         assert {f"bias_{c}", f"drift_{c}"} <= set(names)
     assert [n for n in names if n.startswith("walk_")] == [f"walk_{c}" for c in OUT if c not in ("u", "v", "w")]
     assert {p.slot for p in registry.params("output_bias_drift", OUT)} < set(range(*layout(OUT)["bias"].indices(E))) \
-        | set(range(*layout(OUT)["drift"].indices(E))) | set(range(*layout(OUT)["walk"].indices(E)))
+        | set(range(*layout(OUT)["drift"].indices(E))) | set(range(*layout(OUT)["walk"].indices(E))) \
+        | set(range(*layout(OUT)["revert"].indices(E)))
 
 
 def test_a_ninth_effect_is_laid_out_and_parameterised_from_its_record_alone():

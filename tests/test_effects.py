@@ -95,28 +95,33 @@ def test_a_predictor_without_bias_states_matches_numpy_without_them(smooth):
 
 
 @pytest.mark.parametrize("smooth", [False, True])
-def test_a_walking_bias_is_tracked_per_flight_as_numpy_filters_it(smooth):
-    """The bias candidate's walk: a bias state per channel in the restart filter, restarted with the state and held
-    inside each segment, equals the numpy filter's (scipy's DARE, a loop over samples) on a flight whose theta
-    reading wanders as a random walk; with the walk the predictions of u stay near the flight, without it they do
-    not."""
+@pytest.mark.parametrize("revert", [0.0, 0.5], ids=["random_walk", "reverting"])
+def test_a_walking_bias_is_tracked_per_flight_as_numpy_filters_it(smooth, revert):
+    """The bias candidate's walk: a bias state per channel in the restart filter, restarted with the state and
+    decaying at the walk's reversion rate inside each segment (held at a rate of 0), equals the numpy filter's
+    (scipy's DARE, a loop over samples) on a flight whose theta reading wanders (a random walk, or a first-order
+    Gauss-Markov wander of correlation time 2 s); with the walk the predictions of u stay near the flight, without it
+    they do not."""
     flight = _flight(None, noise=1.0, duration=19.0)
     channel = OUT.index("theta")
     walk = np.zeros(len(OUT))
-    walk[channel] = 0.01  # rad per sqrt(s): about 0.04 rad over the flight, 8 noise std
-    path = 0.02 + np.cumsum(np.random.default_rng(5).normal(0.0, walk[channel] * np.sqrt(DT), flight.n_samples))
+    walk[channel] = 0.03 if revert else 0.01  # rad per sqrt(s): wandering 0.03 rad (std) or 0.04 rad over the flight
+    rho = np.exp(-revert * DT)
+    shocks = np.random.default_rng(5).normal(0.0, walk[channel] * np.sqrt(DT), flight.n_samples)
+    offset = 0.0 if revert else 0.02  # the wander reverts to the fixed bias's line: here no fixed bias
+    path = offset + scipy.signal.lfilter([1.0], [1.0, -rho], shocks)
     wandering = dataclasses.replace(flight, outputs=flight.outputs + np.outer(path, np.eye(len(OUT))[channel]))
-    eta = _eta(walk=(channel, walk[channel]))
+    eta = _eta(walk=(channel, walk[channel]), revert=(0, revert))
     predictor = make_predictor(wandering, segment=2.0, track=0.1, smooth=smooth)
     got = np.asarray(predictor(jnp.asarray(TABLE2), jnp.asarray(eta)))
-    expected = reference_prediction(TABLE2, wandering, segment=2.0, track=0.1, smooth=smooth, walk=walk)
+    expected = reference_prediction(TABLE2, wandering, segment=2.0, track=0.1, smooth=smooth, walk=walk,
+                                    revert=revert)
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-6 * np.abs(expected).max())
     still = np.asarray(predictor(jnp.asarray(TABLE2), jnp.asarray(augmented.no_effect(OUT))))
     # a theta bias restarted into the state tilts the gravity vector: u runs away inside each segment unless the
     # filter holds the bias apart from the attitude
-    u = OUT.index("u")
-    error = lambda y: np.sqrt(np.mean((y - wandering.outputs)[:, u] ** 2))
-    assert error(got) < 0.7 * error(still)
+    error = lambda y, c: np.sqrt(np.mean((y - wandering.outputs)[:, OUT.index(c)] ** 2))
+    assert error(got, "u") < 0.7 * error(still, "u")
 
 
 def test_restart_filter_trusts_the_true_model_and_follows_the_sensors_through_gusts():
@@ -262,7 +267,7 @@ def test_injected_truth_is_reproduced_by_its_predictor(groups):
 
 def test_params_layout_and_errors():
     index, start, lower, upper = effects.candidate_arrays(effects.ALL, OUT)
-    widest = 2 * len(OUT) + 5  # the bias candidate: a bias and a drift per channel, a walk on p q r phi theta
+    widest = 2 * len(OUT) + 6  # the bias candidate: a bias and a drift per channel, a walk on p q r phi theta, its rate
     assert index.shape == start.shape == lower.shape == upper.shape == (8, widest)
     assert set(index[0, :4]) == set(range(LAY["delay"].start, LAY["delay"].stop))
     assert np.all(index[0, 4:] == augmented.size(OUT))

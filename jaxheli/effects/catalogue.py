@@ -101,6 +101,18 @@ _WALK_START = 0.003
 """Start of each channel's walk intensity, as a fraction of its bound: away from ``|walk| = 0``, where the filter's
 bias gain and its gradient vanish."""
 
+_REVERT_BOUND = 2.0
+"""Fastest plausible reversion of a wandering bias to its line (1/s): a correlation time of 0.5 s or longer (a
+warming sensor's wander; faster wander is measurement noise)."""
+
+_REVERT_START = 0.02
+"""Start of the walk's reversion rate (1/s): a correlation time of 50 s, a random walk within any restart segment,
+away from the kink at ``|rate| = 0``."""
+
+_REVERT_TRY = 0.5
+"""Further start of the reversion rate (1/s): a correlation time of 2 s, a wander that a fit from a random walk does
+not reach."""
+
 
 def _channel_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
     units = [_UNITS.get(c, "-") for c in outputs]
@@ -112,7 +124,10 @@ def _channel_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> 
     walk_bounds = [b / np.sqrt(_DRIFT_TIME) for b in bounds]
     walk = tuple(Param(at("walk", i), f"walk_{c}", f"{u}/s^0.5", c, _WALK_START * w, True, w)
                  for i, (c, u, w) in enumerate(zip(outputs, units, walk_bounds)) if u not in _NO_WALK)
-    return bias + drift + walk
+    walking = ",".join(c for c, u in zip(outputs, units) if u not in _NO_WALK)
+    revert = (Param(at("revert", 0), "reversion", "1/s", walking, _REVERT_START, True, _REVERT_BOUND, shape=True,
+                    tries=(_REVERT_TRY,)),) if walk else ()
+    return bias + drift + walk + revert
 
 
 def _offset(plant: PlantView, y: Float[Array, "k"], t: Float[Array, ""]) -> Float[Array, "k"]:
@@ -133,7 +148,7 @@ def _inject_bias_drift(dice: Dice) -> Draw:
 
 OUTPUT_BIAS_DRIFT = Effect(
     name="output_bias_drift",
-    groups=(Group("bias", None), Group("drift", None), Group("walk", None)),
+    groups=(Group("bias", None), Group("drift", None), Group("walk", None), Group("revert", 1)),
     eta_order=7,
     params=_channel_params,
     terms=(Term("reading", _offset, _remove_offset),),
@@ -143,11 +158,14 @@ OUTPUT_BIAS_DRIFT = Effect(
 """A constant bias and a linear drift on every output channel (the channel's units and per s; bias up to
 3 m/s, 0.5 rad/s or 0.35 rad, drift up to that bias per 10 s): ``y + bias + drift t``, and a random walk of the bias
 about that line on the rate and attitude channels (intensity ``walk``, the channel's unit per sqrt(s): the walk's std
-grows as ``walk sqrt(t)``; up to the plausible bias in 10 s; none on velocities, :data:`_NO_WALK`). The walk has no plant term: it is a state of the restart filter
-(:func:`jaxheli.gap.kalman.gust_filter`), zero at each record's start and re-estimated along it, so a bias that
-wanders differently on the validation flight than on the training flight is credited for its statistics rather than
-for the training flight's path, which no fixed bias and drift can transfer. Injected: bias 2-4 noise standard deviations and a drift of as
-much again over the flight, on one random channel (no walk: the independent simulator's bias walks it)."""
+grows as ``walk sqrt(t)``; up to the plausible bias in 10 s; none on velocities, :data:`_NO_WALK`), reverting to the
+line at ``reversion`` (1/s, shared by the channels: ``b+ = e^(-rate dt) b + walk sqrt(dt) white``, a first-order
+Gauss-Markov wander of correlation time ``1 / rate``, a random walk as the rate goes to 0; a shape parameter). The walk
+has no plant term: it is a state of the restart filter (:func:`jaxheli.gap.kalman.gust_filter`), zero at each record's
+start, re-estimated along it and reverting inside a segment, so a bias that wanders differently on the validation
+flight than on the training flight is credited for its statistics rather than for the training flight's path, which no
+fixed bias and drift can transfer. Injected: bias 2-4 noise standard deviations and a drift of as much again over the
+flight, on one random channel (no walk: the independent simulator's bias walks it)."""
 
 
 def _process_noise_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:

@@ -1,9 +1,10 @@
-"""Steady-state Kalman filter of the plant plus a first-order gust model and random-walk output biases: the
-filter-error idea.
+"""Steady-state Kalman filter of the plant plus a first-order gust model and wandering output biases (random walks
+that may revert): the filter-error idea.
 
 The wind on u, v, w is first-order Gauss-Markov (``wind+ = rho wind + sqrt(1 - rho^2) sigma white``,
 ``rho = exp(-dt / tau)``), the same process :func:`jaxheli.piloted_flight` flies; each output channel carries a bias
-that walks (``b+ = b + walk sqrt(dt) white``, the ``walk`` group of the bias candidate). Augmenting the state
+that walks and reverts (``b+ = e^(-rate dt) b + walk sqrt(dt) white``, the ``walk`` and ``revert`` groups of the bias
+candidate). Augmenting the state
 with both, the steady-state predicted covariance solves the filter Riccati equation; it is computed by the
 structure-preserving doubling algorithm (a fixed number of doublings, so jit/vmap friendly), differentiated
 implicitly (a Stein equation for the tangent).
@@ -83,7 +84,8 @@ def gust_filter(
     all zero, where they would only carry their floor.
 
     ``plant``'s ``gust`` group gives sigma (m/s), tau (s) and a cut ``c`` of ``track`` (to ``track e^-|c|``), its
-    ``walk`` group each output bias's walk intensity (the channel's unit per sqrt(s));
+    ``walk`` group each output bias's walk intensity (the channel's unit per sqrt(s)) and its ``revert`` group their
+    reversion rate (1/s);
     ``noise_var`` is each output's measurement noise variance. Each measured state carries process noise of
     variance ``track^2`` times its channel's noise variance per sample (how closely the filter
     follows the measurements rather than the model), every state a ``1e-12`` floor (harmless beside the
@@ -93,10 +95,11 @@ def gust_filter(
     sigma, tau, cut = plant.group("gust")
     track = track * jnp.exp(-jnp.abs(cut))
     rho = jnp.exp(-plant.dt / (jnp.abs(tau) + 1e-6))
+    rho_bias = jnp.exp(-jnp.abs(plant.group("revert")[0]) * plant.dt)
     n, m, k = plant.Ad.shape[0], len(GUST_STATES), plant.C.shape[0]
     b = k if walks else 0
     F = jnp.block([[plant.Ad, plant.E, jnp.zeros((n, b))], [jnp.zeros((m, n)), rho * jnp.eye(m), jnp.zeros((m, b))],
-                   [jnp.zeros((b, n + m)), jnp.eye(b)]])
+                   [jnp.zeros((b, n + m)), rho_bias * jnp.eye(b)]])
     H = jnp.concatenate([plant.C, jnp.zeros((k, m)), jnp.eye(k, b)], axis=1)
     q = jnp.concatenate([track**2 * (plant.C.T @ noise_var) + _FLOOR, jnp.full(m, sigma**2 * (1.0 - rho**2) + _FLOOR),
                          (plant.group("walk") ** 2 * plant.dt + _BIAS_FLOOR * noise_var)[:b]])

@@ -10,7 +10,8 @@ the diagnosis tunes ``track`` on the training flight (:func:`tune_track`): low w
 high when it is far from the flight (identified models of real flights), so restarts stay near the data.
 The process-noise candidate adds its gust states to the filter: the wind it estimates restarts with the
 states and then decays with the gust time constant inside the segment. The bias candidate's walk adds a bias state
-per output channel: the bias it estimates restarts with the states and is held inside the segment.
+per output channel: the bias it estimates restarts with the states and reverts inside the segment at the walk's
+reversion rate (held, as a random walk's, at a rate of 0).
 """
 
 from __future__ import annotations
@@ -72,6 +73,7 @@ class Predictor(eqx.Module):
         k, gusts = len(self.outputs), slice(N_STATES, N_STATES + len(GUST_STATES))
         b = k if self.walks else 0
         rho = F[gusts.start, gusts.start]
+        rho_bias = F[gusts.stop, gusts.stop] if self.walks else 1.0
         states = plant.unmeasure(self.measured, self.time)
         x0 = jnp.zeros(N_STATES).at[idx].set(states[0])
         history, servo, rotor = plant.init_actuators()
@@ -82,12 +84,12 @@ class Predictor(eqx.Module):
             history, servo = plant.actuate(history, servo, stick)
             x_next, rotor_next = plant.advance(x, rotor, servo, wind)
             z_x, _ = plant.advance(z[:N_STATES], rotor, servo, z[gusts])
-            z = jnp.concatenate([z_x, rho * z[gusts], z[gusts.stop:]])
+            z = jnp.concatenate([z_x, rho * z[gusts], rho_bias * z[gusts.stop:]])
             z = z + K @ (after - H @ z)
             out = x_next[idx] + bias
             x_next = jnp.where(restart, z[:N_STATES], x_next)
             wind = jnp.where(restart, z[gusts], rho * wind)
-            bias = jnp.where(restart, z[gusts.stop:], bias) if self.walks else bias
+            bias = jnp.where(restart, z[gusts.stop:], rho_bias * bias) if self.walks else bias
             return (x_next, wind, bias, history, servo, rotor_next, z), out
 
         restart = jnp.arange(1, self.time.shape[0]) % self.segment_samples == 0
