@@ -29,9 +29,11 @@ def test_start_rows_try_the_axes_together_where_asked_then_each_alone():
     noise = effects.start_rows("process_noise", OUT)  # the gusts' correlation time also from 3 s
     ps = effects.params("process_noise", OUT)
     np.testing.assert_array_equal(noise, [[p.start for p in ps], [3.0 if p.name == "gust_tau" else p.start for p in ps]])
-    for name in ("output_bias_drift", "rotor_speed_coupling"):
-        ps = effects.params(name, OUT)
-        np.testing.assert_array_equal(effects.start_rows(name, OUT), [[p.start for p in ps]])
+    bias = effects.params("output_bias_drift", OUT)  # the walk's reversion also from 0.5 1/s (a wander of 2 s)
+    np.testing.assert_array_equal(effects.start_rows("output_bias_drift", OUT),
+                                  [[p.start for p in bias], [0.5 if p.name == "reversion" else p.start for p in bias]])
+    ps = effects.params("rotor_speed_coupling", OUT)
+    np.testing.assert_array_equal(effects.start_rows("rotor_speed_coupling", OUT), [[p.start for p in ps]])
 
 
 def test_tried_arrays_repeat_each_candidate_per_start_and_pad_to_the_joint_shape():
