@@ -72,11 +72,13 @@ def machine() -> dict:
 
 
 def record(name: str, kind: str, command: str, json_path: Path, *, title: str, measure: str, sample: str,
-           seeds: str, note: str = "", ran_s: float | None = None) -> dict:
+           seeds: str, note: str = "", ran_s: float | None = None, keep: str | None = None) -> dict:
     """Run ``command`` (a shell command line, from the repository root), read the JSON it writes at ``json_path``
     and store it with its metadata as ``docs/benchmarks/NAME.json``; the record keeps the command as written
     (``$JAXHELI_DATA`` unexpanded). ``ran_s``: the command already ran on this commit, taking that long by the
-    caller's clock; its output is stored without running it again (the record says so)."""
+    caller's clock; its output is stored without running it again (the record says so). ``keep``: store only that
+    top-level entry of the JSON (e.g. ``summary`` of a blind check's ``blind.json``, whose per-trial records run to
+    megabytes)."""
     load_before = machine()["load_1min"]
     if ran_s is None:
         start = time.perf_counter()
@@ -96,11 +98,20 @@ def record(name: str, kind: str, command: str, json_path: Path, *, title: str, m
         "machine": {**machine(), "load_1min_before": load_before},
         "label": {"measure": measure, "sample": sample, "seeds": seeds, "note": note},
         "wall_s": round(wall, 1),
-        "output": json.loads(Path(json_path).read_text()),
+        "output": _kept(json.loads(Path(json_path).read_text()), keep),
     }
     RECORDS.mkdir(exist_ok=True)
     (RECORDS / f"{name}.json").write_text(json.dumps(_finite(rec), indent=1) + "\n")
     return rec
+
+
+def _kept(output: dict, keep: str | None) -> dict:
+    """``output``, or only its entry ``keep`` (an error naming the entries there are when it has none)."""
+    if keep is None:
+        return output
+    if keep not in output:
+        raise ValueError(f"record: the JSON has no entry {keep!r}; it has {sorted(output)}")
+    return output[keep]
 
 
 def _finite(value):
@@ -305,8 +316,40 @@ def render_long_log(rec: dict) -> str:
             + _table(header, rows))
 
 
+def render_blind(rec: dict) -> str:
+    """``jaxheli blind`` (its ``blind.json``'s ``summary``, stored with ``--keep summary``): per kind, top-1 over all
+    trials and over the resolvable ones, the median magnitude error there and how often the base model's structure
+    was named; top-1 pooled by form (in family: the nearest candidate comes within the noise; other forms); the
+    controls that named an effect."""
+    from jaxheli.benchmark.truth import IN_FAMILY
+
+    out = rec["output"]
+    set_ = out["settings"]
+    pct = lambda v: "-" if v is None else f"{v:.0f}"
+    err = lambda v: "-" if v is None or isinstance(v, str) else f"{100 * v:.0f} %"
+    rows = [[f"`{kind}`", "control" if kind == "none" else ("in family" if kind in IN_FAMILY else "other forms"),
+             k["trials"], pct(k.get("top1_pct")), k.get("resolvable_trials", "-"), pct(k.get("top1_resolvable_pct")),
+             err(k.get("magnitude_error_median_resolvable")), pct(k.get("structure_pct"))]
+            for kind, k in out["kinds"].items()]
+    pooled = [[label, f["trials"], pct(f["top1_pct"]), f["resolvable_trials"], pct(f.get("top1_resolvable_pct")),
+               err(f.get("magnitude_error_median_resolvable"))] for label, f in out.get("forms", {}).items()]
+    low, high = out["false_positive_ci95_pct"]
+    return (f"The `{set_['truth']}` simulator, `{set_['truths']}` truths, `{set_['split']}` seeds "
+            f"{set_['seed_range'][0]}-{set_['seed_range'][1]} a kind; base models identified by `{set_['base']}` "
+            f"in the `{set_['box']}` box, {set_['duration']:g}-s flights at {1 / set_['dt']:g} Hz. Top-1: the "
+            "verdict names a right candidate first; resolvable: the effect shows on the training flight as on the "
+            "validation flight, decided by the simulator before any fit (`docs/guide/blind.md`).\n\n"
+            + _table(["kind", "form", "trials", "top-1 %", "resolvable", "top-1 % resolvable",
+                      "median magnitude error (resolvable)", "structure named %"], rows)
+            + "\n\n" + _table(["pooled", "trials", "top-1 %", "resolvable", "top-1 % resolvable",
+                                 "median magnitude error (resolvable)"], pooled)
+            + f"\n\nControls that named an effect: **{out['false_positives']} of {out['controls']}** (95 % Wilson "
+              f"interval {low:.0f}-{high:.0f} %).")
+
+
 RENDERERS = {"identify": render_identify, "verify": render_verify, "truth_forms": render_truth_forms,
-             "suite_time": render_suite_time, "recipes": render_recipes, "long_log": render_long_log}
+             "suite_time": render_suite_time, "recipes": render_recipes, "long_log": render_long_log,
+             "blind": render_blind}
 """How each kind of record is drawn; a new kind (e.g. ``bench.json``) needs its renderer here."""
 
 INTRO = """# Benchmarks
@@ -354,6 +397,8 @@ def main(argv: list[str] | None = None) -> int:
     rec.add_argument("--note", default="")
     rec.add_argument("--ran", type=float, default=None, metavar="SECONDS",
                      help="the command already ran (taking SECONDS): store its JSON without running it again")
+    rec.add_argument("--keep", default=None, metavar="KEY",
+                     help="store only this top-level entry of the JSON (a blind check's: summary)")
     rec.add_argument("command", help="the command line, one argument (run by bash from the repository root)")
     sub.add_parser("render", help="print the page")
     args = parser.parse_args(argv)
@@ -361,7 +406,7 @@ def main(argv: list[str] | None = None) -> int:
         print(render(load_records()))
         return 0
     record(args.name, args.kind, args.command, args.json, title=args.title, measure=args.measure, sample=args.sample,
-           seeds=args.seeds, note=args.note, ran_s=args.ran)
+           seeds=args.seeds, note=args.note, ran_s=args.ran, keep=args.keep)
     return 0
 
 
