@@ -207,3 +207,81 @@ def test_the_staged_ranking_re_checks_beyond_the_structure_what_its_rule_names(m
                 ("all", 50.0): (None, {"input_delay", "control_saturation"})}[recheck, leads]
     assert (asked or [None]) == [expected[0]] and named == expected[1]
     assert [e.effect for e in found.recheck] == (expected[0] or [])
+
+
+def _noise_first(beyond_significant: bool):
+    """A ranking led by process noise (gusts of 0.4 m/s, 2 s), a delay and a lag behind it, and their entries
+    ranked again beyond the noise: the delay significant there or not."""
+    from jaxheli.effects import registry as fx
+
+    delay, lag, _ = _entries()
+    noise = dataclasses.replace(delay, effect="process_noise", shrink_pct=45.0,
+                                fitted=fx.report("process_noise", OUT, np.array([0.4, 2.0, 1.0]), np.full(3, 0.05)))
+    beyond = (dataclasses.replace(delay, shrink_pct=12.0, significant=beyond_significant, tied_with=()),
+              dataclasses.replace(lag, shrink_pct=4.0, significant=False, tied_with=()))
+    return [noise, delay, lag], beyond
+
+
+@pytest.mark.parametrize("beyond_significant", [True, False])
+def test_process_noise_gives_way_to_an_effect_that_shrinks_the_gap_beyond_it(beyond_significant):
+    """Process noise leads the ranking: a delay significant beyond it (its gusts freed in every fit) is named in its
+    place, with its shrink beyond the noise and the noise named after it; with nothing significant beyond it, the
+    noise itself is named."""
+    from jaxheli.gap.verdict import named
+
+    ranking, beyond = _noise_first(beyond_significant)
+    v = find(ranking, None, None, (), beyond)
+    if beyond_significant:
+        assert v.effect is beyond[0] and v.noise is ranking[0] and named(ranking, beyond) is ranking[1]
+        assert str(v) == ("input_delay (lat input delay delay 80 +- 5 ms): gap shrinks 12.0 % on the validation "
+                          "flight beyond process noise (u,v,w process noise gust_std 0.4 +- 0.05 m/s; u,v,w process "
+                          "noise gust 2000 +- 50 ms; u,v,w process noise state_noise_cut 1 +- 0.05 ln)")
+    else:
+        assert v.effect is ranking[0] and v.noise is None and named(ranking, beyond) is ranking[0]
+        assert str(v).startswith("process_noise (")
+    assert find(ranking[1:], None, None, (), beyond).effect is ranking[1]  # noise not first: nothing changes
+
+
+def test_the_staged_ranking_re_checks_beyond_process_noise_when_it_leads(monkeypatch):
+    """When process noise is the box's best significant effect, the other candidates the restart filter does not
+    read (not the bias's walk) are ranked again with its fitted gusts carried in every row, from its base
+    parameters; otherwise no such ranking is made."""
+    from jaxheli.gap import ranking
+    from jaxheli.gap.candidates import Ranked
+
+    (noise, delay, lag), beyond = _noise_first(True)
+    noise = dataclasses.replace(noise, theta="noise")
+    labels = ["input_delay", "process_noise", "output_bias_drift", "actuator_lag"]
+    asked = []
+
+    def fake_ranked(train, validate, theta, labels_, arrays, owner, max_steps, min_shrink, box_, carried=None):
+        if carried is not None:
+            asked.append((list(labels_), theta, carried))
+            assert [len(a) for a in arrays] == [len(owner)] * 4 and sorted(set(owner)) == list(range(len(labels_)))
+            return Ranked(list(beyond), None, None, None, None)
+        return Ranked(first, None, None, None, None)
+
+    monkeypatch.setattr(ranking, "ranked", fake_ranked)
+    monkeypatch.setattr(ranking, "structure_hypothesis", lambda *a: None)
+    monkeypatch.setattr(ranking, "theta_box", lambda theta, box_: box_)
+    arrays = tuple(np.arange(8)[:, None] for _ in range(4))
+    for first, expected in (([noise, delay, lag], [(["input_delay", "actuator_lag"], "noise", noise)]),
+                            ([delay, noise, lag], [])):
+        asked.clear()
+        found = ranking.staged(None, None, "box", labels, arrays, np.repeat(np.arange(4), 2), 15, 5.0, Bounds())
+        assert asked == expected and found.beyond_noise == (tuple(beyond) if expected else ())
+
+
+def test_carried_effect_parameters_come_before_the_nuisance_ones():
+    """The columns every row frees: the carried effect's own parameters (started at its fitted values), then the
+    nuisance parameters, last, where a fit's nuisance values are read back (:func:`fitted_nuisance`)."""
+    from jaxheli.effects import registry as fx
+    from jaxheli.gap.fit_effect import fitted_nuisance
+
+    plain = fx.nuisance_arrays(OUT)
+    slot, start, lower, upper = fx.nuisance_arrays(OUT, "process_noise", {"gust_std": 0.4, "gust_tau": 2.5})
+    own = [p for p in fx.params("process_noise", OUT) if not p.nuisance]
+    assert list(slot) == [p.slot for p in own] + list(plain[0])
+    assert list(start[:2]) == [0.4, 2.5] and np.array_equal(start[2:], plain[1])
+    assert np.array_equal(upper[2:], plain[3]) and list(upper[:2]) == [p.bound for p in own]
+    assert fitted_nuisance(np.r_[0.0, 0.4, 2.5, plain[1]], OUT) == fitted_nuisance(np.r_[plain[1]], OUT)

@@ -54,6 +54,11 @@ def ranking_table(diagnosis: Diagnosis) -> list[str]:
         lines.append(f"  re-checked beyond the structure, in the physical ranges (significant above {rule}):")
         lines += [_row(e.effect, e.shrink_pct, e.shrink_se_pct, "*" if e.significant else "",
                        [e.shrink_by_channel[n] for n in names], e.fitted.summary) for e in found.recheck]
+    if found.beyond_noise:
+        lines.append("  re-checked beyond process noise, its gusts freed in every fit (the best significant here "
+                     "is named in its place):")
+        lines += [_row(e.effect, e.shrink_pct, e.shrink_se_pct, "*" if e.significant else "",
+                       [e.shrink_by_channel[n] for n in names], e.fitted.summary) for e in found.beyond_noise]
     return lines
 
 

@@ -107,11 +107,15 @@ def nuisance(outputs: tuple[str, ...]) -> tuple[Param, ...]:
     return tuple(p for e in ALL for p in params(e, outputs) if p.nuisance)
 
 
-def nuisance_arrays(outputs: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(slot[S], start[S], lower[S], upper[S])`` of the :func:`nuisance` parameters (their box as
-    :func:`box` gives it)."""
-    ps = nuisance(outputs)
-    return (np.array([p.slot for p in ps], dtype=np.int32), np.array([p.start for p in ps]),
+def nuisance_arrays(
+    outputs: tuple[str, ...], carried: str | None = None, values: Mapping[str, float] | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(slot[S], start[S], lower[S], upper[S])`` of the parameters every row of a fit frees: the ``carried``
+    effect's own, when named, then the :func:`nuisance` ones (their box as :func:`box` gives it), started at
+    ``values`` (by name) where given."""
+    own = () if carried is None else tuple(p for p in params(carried, outputs) if not p.nuisance)
+    ps, values = own + nuisance(outputs), {} if values is None else values
+    return (np.array([p.slot for p in ps], dtype=np.int32), np.array([values.get(p.name, p.start) for p in ps]),
             np.array([0.0 if p.positive else -p.bound for p in ps]), np.array([p.bound for p in ps]))
 
 

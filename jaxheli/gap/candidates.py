@@ -179,14 +179,20 @@ class Ranked(NamedTuple):
 def ranked(
     train: Predictor, validate: Predictor, theta: Float[ArrayLike, "40"], labels: list[str],
     arrays: tuple[np.ndarray, ...], owner: np.ndarray | None, max_steps: int, min_shrink: float, box: Bounds | None,
+    carried: Entry | None = None,
 ) -> Ranked:
     """Entries of the candidates ``labels`` whose ``(index, start, lower, upper)`` rows are ``arrays``
     (:func:`~jaxheli.effects.registry.candidate_arrays`, padded rows after them; with ``owner``, several rows per
     candidate and rows of further candidates after ``labels``', e.g. an oracle's), fitted behind the reference
-    (:func:`fit_and_score`) and credited against the better model without an effect."""
+    (:func:`fit_and_score`) and credited against the better model without an effect. Jointly (``box`` given), a
+    ``carried`` entry's effect is freed in every row, the reference's included, started at its fitted values:
+    the candidates are then credited beyond it."""
     outputs = train.outputs
     shared = box is not None
-    cand = with_reference(*arrays, len(no_effect(outputs)), fx.nuisance_arrays(outputs) if shared else None)
+    values = None if carried is None else {**{n: e.value for n, e in carried.fitted.params.items()},
+                                           **carried.nuisance}
+    cand = with_reference(*arrays, len(no_effect(outputs)),
+                          fx.nuisance_arrays(outputs, carried and carried.effect, values) if shared else None)
     scored = fit_and_score(train, validate, theta, cand, max_steps, box, owner, challengers=len(labels))
     rows = len(labels) + 1
     credited = yardstick(scored.given, scored.rows)

@@ -42,7 +42,7 @@ from .reference import theta_box
 from .significance import MIN_SHRINK
 from .structure import physical_box, structure_hypothesis
 from .thresholds import THRESHOLDS
-from .verdict import explains_more, structure_leads as structure_leads
+from .verdict import NOISE, explains_more, named as named, structure_leads as structure_leads
 
 
 class Staged(NamedTuple):
@@ -50,14 +50,16 @@ class Staged(NamedTuple):
     effect's significance as judged beyond the structure when it was re-checked, :data:`RECHECK`), ``refit`` the
     given base re-fitted alone in that box (``None``: frozen base), ``structure`` the hypothesis
     (:func:`~jaxheli.gap.structure.structure_hypothesis`), ``recheck`` the entries of the effects ranked again beyond
-    the structure, in the physical ranges (:data:`RECHECK`; empty when not re-checked), and the ``box`` the
-    ranking kept the base parameters in."""
+    the structure, in the physical ranges (:data:`RECHECK`; empty when not re-checked), the ``box`` the
+    ranking kept the base parameters in, and the entries of the effects ranked again beyond process noise when that
+    leads the ranking (``beyond_noise``, :func:`beyond_noise`; empty otherwise)."""
 
     ranked: Ranked
     refit: Refit | None
     structure: Structure | None
     recheck: tuple[Entry, ...]
     box: Bounds | None
+    beyond_noise: tuple[Entry, ...] = ()
 
 
 RECHECKS: tuple[str, ...] = ("significant", "all")
@@ -77,7 +79,7 @@ RECHECK_ROWS = 4
 """The re-check's candidate rows are padded to a multiple of this, so its solver compiles for few batch shapes."""
 
 
-def staged(
+def _by_structure(
     train: Predictor, validate: Predictor, theta: Float[ArrayLike, "40"], labels: list[str],
     arrays: tuple[np.ndarray, ...], owner: np.ndarray, max_steps: int, min_shrink: float, box: Bounds | None,
 ) -> Staged:
@@ -116,6 +118,42 @@ def staged(
     entries = [dataclasses.replace(e, significant=e.effect in kept or (e.effect in both and (every or e.significant)),
                                    tied_with=tuple(t for t in e.tied_with if t in both)) for e in first.entries]
     return Staged(first._replace(entries=entries), first.refit, hypothesis, tuple(again.entries), box)
+
+
+def staged(
+    train: Predictor, validate: Predictor, theta: Float[ArrayLike, "40"], labels: list[str],
+    arrays: tuple[np.ndarray, ...], owner: np.ndarray, max_steps: int, min_shrink: float, box: Bounds | None,
+) -> Staged:
+    """The candidates ranked in the box and beyond the base model's structure (:func:`_by_structure`), and when
+    the best significant effect is process noise, the others ranked again beyond it (:func:`beyond_noise`)."""
+    stages = _by_structure(train, validate, theta, labels, arrays, owner, max_steps, min_shrink, box)
+    best = next((e for e in stages.ranked.entries if e.significant), None)
+    if best is None or best.effect != NOISE or box is None:
+        return stages
+    again = beyond_noise(train, validate, labels, arrays, owner, best, max_steps, min_shrink, box)
+    return stages._replace(beyond_noise=again)
+
+
+def beyond_noise(
+    train: Predictor, validate: Predictor, labels: list[str], arrays: tuple[np.ndarray, ...], owner: np.ndarray,
+    noise: Entry, max_steps: int, min_shrink: float, box: Bounds,
+) -> tuple[Entry, ...]:
+    """The candidates ``labels`` (rows ``arrays``, candidate ``owner[r]`` for row ``r``) that the restart filter
+    does not read (:func:`~jaxheli.effects.registry.filtered`), ranked again with the ``noise`` entry's gusts freed
+    in every row, the reference's included, from its fit (its base parameters, gust and nuisance values), in ``box``
+    widened to hold them. White and coloured process noise is the filter-error method's model of whatever the base
+    model leaves unexplained, a wrong structure's misfit included; an effect that still shrinks the gap beyond it is
+    the finding (:func:`~jaxheli.gap.verdict.past_noise`). A second disturbance the filter estimates (a bias's walk)
+    is not ranked beyond the first: on turbulence, the walk took up the rotational gusts the wind model lacks."""
+    chosen = [c for c, name in enumerate(labels) if not fx.filtered(name)]
+    rows = np.flatnonzero(np.isin(owner, chosen))
+    rows = np.r_[rows, np.full(-len(rows) % RECHECK_ROWS, rows[-1])]
+    with stage(f"re-check of {len(chosen)} effects beyond process noise ({noise.fitted.summary})") as now:
+        again = ranked(train, validate, noise.theta, [labels[c] for c in chosen], tuple(a[rows] for a in arrays),
+                       np.searchsorted(chosen, owner[rows]), max_steps, min_shrink, theta_box(noise.theta, box),
+                       carried=noise)
+        now.outcome = f"significant beyond it: {', '.join(e.effect for e in again.entries if e.significant) or 'none'}"
+    return tuple(again.entries)
 
 
 def _rank(
@@ -217,13 +255,14 @@ def diagnose_effects(
             combination = _combine(train, validate, base_theta, chosen, max_steps, min_shrink,
                                    _warm(ranking, chosen, train.outputs), shape, box)
             now.outcome = f"shrinks the held-out gap {combination.shrink_pct:.1f} %"
-    best = next((e for e in ranking if e.significant), None)
+    best = named(ranking, stages.beyond_noise)
     final = None
     if best is not None and box is not None:
         with stage(f"final fit: {best.effect}'s size re-identified with the base model on both flights") as now:
             final = final_fit(train, validate, best, box)
             now.outcome = final.fitted.summary
-    return Attribution(tuple(ranking), combination, refit, final, float(train.track), structure, stages.recheck)
+    return Attribution(tuple(ranking), combination, refit, final, float(train.track), structure, stages.recheck,
+                       stages.beyond_noise)
 
 
 def predictor_pair(

@@ -27,11 +27,13 @@ from .verdict import Verdict, find
 class Attribution:
     """Which effect (:func:`~jaxheli.gap.ranking.diagnose_effects`): the ranking, best first; the joint fit of
     the significant effects (``None`` unless two or more); the base re-fitted alone (``None``: frozen base); the
-    best significant effect re-identified on both flights (``None`` without one, or frozen); the
+    named effect (:func:`~jaxheli.gap.verdict.named`) re-identified on both flights (``None`` without one, or frozen); the
     restart filter's level every fit used; the base model's structure as a hypothesis (``None``: frozen base, or
     a box that already holds the physical ranges); the effects ranked again beyond the structure, in the physical
     ranges (``recheck``, :func:`~jaxheli.gap.ranking.staged`: where an effect is
-    significant beyond the structure, :data:`~jaxheli.gap.ranking.RECHECK`). What they add up to: :attr:`verdict`."""
+    significant beyond the structure, :data:`~jaxheli.gap.ranking.RECHECK`); the effects ranked again beyond
+    process noise when that leads (``beyond_noise``, :func:`~jaxheli.gap.ranking.beyond_noise`). What they add up
+    to: :attr:`verdict`."""
 
     ranking: tuple[Entry, ...]
     combination: Entry | None
@@ -40,6 +42,7 @@ class Attribution:
     track: float
     structure: Structure | None = None
     recheck: tuple[Entry, ...] = ()
+    beyond_noise: tuple[Entry, ...] = ()
 
     @property
     def shown(self) -> tuple[Entry, ...]:
@@ -50,14 +53,15 @@ class Attribution:
     def verdict(self) -> Verdict:
         """What the ranking, the base re-fitted alone, the structure and the re-check found
         (:func:`~jaxheli.gap.verdict.find`; ``str()`` of it: the sentence ``diagnosis.json`` holds)."""
-        return find(self.ranking, self.base_refit, self.structure, self.recheck)
+        return find(self.ranking, self.base_refit, self.structure, self.recheck, self.beyond_noise)
 
     def to_json(self) -> dict[str, Any]:
-        """``{ranking, combination, base_refit, structure, recheck, verdict, final, track}``."""
+        """``{ranking, combination, base_refit, structure, recheck, beyond_noise, verdict, final, track}``."""
         return {"ranking": [e.to_json() for e in self.ranking], "combination": _json(self.combination),
                 "base_refit": _json(self.base_refit) or {"joint": False}, "structure": _json(self.structure),
-                "recheck": [e.to_json() for e in self.recheck], "verdict": str(self.verdict), "final": _json(self.final),
-                "track": self.track}
+                "recheck": [e.to_json() for e in self.recheck],
+                "beyond_noise": [e.to_json() for e in self.beyond_noise], "verdict": str(self.verdict),
+                "final": _json(self.final), "track": self.track}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Attribution:
@@ -66,7 +70,8 @@ class Attribution:
                      combination=_maybe(Entry.from_json, data["combination"]),
                      base_refit=Refit.from_json(data["base_refit"]), final=_maybe(Final.from_json, data["final"]),
                      structure=_maybe(Structure.from_json, data.get("structure")),
-                     recheck=tuple(map(Entry.from_json, data.get("recheck", ()))))
+                     recheck=tuple(map(Entry.from_json, data.get("recheck", ()))),
+                     beyond_noise=tuple(map(Entry.from_json, data.get("beyond_noise", ()))))
 
 
 @dataclasses.dataclass(frozen=True)

@@ -30,6 +30,8 @@ class Verdict:
         tied_with: the significant effects within the named effect's noise.
         outshrinks: the significant structure the named effect shrinks the gap further than (:func:`explains_more`:
             the effect is then not the structure's stand-in); ``None`` otherwise.
+        noise: the process noise the named effect was credited beyond (:func:`past_noise`; ``effect`` is then its
+            entry beyond the noise); ``None`` otherwise.
     """
 
     under_fitted: Refit | None = None
@@ -37,6 +39,7 @@ class Verdict:
     effect: Entry | None = None
     tied_with: tuple[str, ...] = ()
     outshrinks: Structure | None = None
+    noise: Entry | None = None
 
     @property
     def settled(self) -> bool:
@@ -45,6 +48,30 @@ class Verdict:
 
     def __str__(self) -> str:
         return sentence(self)
+
+
+NOISE = "process_noise"
+"""The candidate that models process noise: named only when no other effect shrinks the gap beyond it
+(:func:`past_noise`)."""
+
+
+def past_noise(effect: Entry | None, beyond: Sequence[Entry]) -> Entry | None:
+    """The effect named in place of process noise: when ``effect`` is process noise, the best significant entry of
+    ``beyond`` (the other candidates ranked again with the noise freed in every fit,
+    :func:`~jaxheli.gap.ranking.beyond_noise`); ``None`` otherwise. Process noise stands for whatever the base
+    model leaves unexplained, a wrong structure's misfit included, so an effect that explains more is the finding."""
+    if effect is None or effect.effect != NOISE:
+        return None
+    return next((e for e in beyond if e.significant), None)
+
+
+def named(ranking: Sequence[Entry], beyond: Sequence[Entry] = ()) -> Entry | None:
+    """The ranking entry of the effect a diagnosis names from the box's ``ranking`` (best first): the best
+    significant one, or the effect named in its place beyond process noise (:func:`past_noise`); ``None``: none
+    significant."""
+    best = next((e for e in ranking if e.significant), None)
+    instead = past_noise(best, beyond)
+    return best if instead is None else next(e for e in ranking if e.effect == instead.effect)
 
 
 def explains_more(entry: Entry, structure: Structure | None) -> bool:
@@ -65,27 +92,33 @@ def structure_leads(ranking: Sequence[Entry], structure: Structure | None) -> bo
 
 def find(
     ranking: Sequence[Entry], refit: Refit | None = None, structure: Structure | None = None,
-    recheck: Sequence[Entry] = (),
+    recheck: Sequence[Entry] = (), beyond_noise: Sequence[Entry] = (),
 ) -> Verdict:
     """The verdict of a ``ranking`` (best first), the base re-fitted alone (``refit``, ``None``: frozen base), the
-    base model's ``structure`` (:func:`~jaxheli.gap.structure.structure_hypothesis`) and the entries ranked again
-    beyond it (``recheck``, best first, :func:`~jaxheli.gap.ranking.staged`). When the structure is named, the effect
-    named is the significant one that shrinks the gap furthest beyond it."""
+    base model's ``structure`` (:func:`~jaxheli.gap.structure.structure_hypothesis`), the entries ranked again
+    beyond it (``recheck``, best first, :func:`~jaxheli.gap.ranking.staged`) and beyond process noise
+    (``beyond_noise``, :func:`past_noise`). When the structure is named, the effect named is the significant one
+    that shrinks the gap furthest beyond it."""
     if refit is not None and not refit.settled:
         return Verdict(under_fitted=refit)
     best = next((e for e in ranking if e.significant), None)
-    named = structure_leads(ranking, structure)
-    effect = best
-    if best is not None and named:
+    instead = past_noise(best, beyond_noise)
+    noise = None if instead is None else best
+    if instead is not None:
+        best = next(e for e in ranking if e.effect == instead.effect)
+    leads = structure_leads(ranking, structure)
+    effect = best if instead is None else instead
+    if best is not None and leads and instead is None:
         significant = {e.effect for e in ranking if e.significant}
         effect = next((r for r in recheck if r.effect in significant), best)
         best = next(e for e in ranking if e.effect == effect.effect)
     return Verdict(
         under_fitted=refit if refit is not None and refit.under_fitted else None,
-        structure=structure if named else None,
+        structure=structure if leads else None,
         effect=effect,
-        tied_with=best.tied_with if best is not None else (),
+        tied_with=(best.tied_with if instead is None else instead.tied_with) if best is not None else (),
         outshrinks=structure if best is not None and explains_more(best, structure) else None,
+        noise=noise,
     )
 
 
@@ -101,6 +134,8 @@ def sentence(verdict: Verdict) -> str:
     else:
         tie = f", tied with {' and '.join(verdict.tied_with)}" if verdict.tied_with else ""
         text = f"{e.effect} ({e.fitted.summary}){tie}: gap shrinks {e.shrink_pct:.1f} % on the validation flight"
+        if verdict.noise is not None:
+            text += f" beyond process noise ({verdict.noise.fitted.summary})"
         s = verdict.outshrinks
         if s is not None:
             text += f", more than the base model's structure ({s.summary}: {s.shrink_pct:.1f} +- {s.shrink_se_pct:.1f} %)"

@@ -14,7 +14,7 @@ from ...effects import registry as fx
 from ...gap.final_fit import final_fit
 from ...gap.fit_effect import MAX_STEPS
 from ...gap.predictor import RESTART, SEGMENT, smooths
-from ...gap.ranking import predictor_pair, staged, structure_leads
+from ...gap.ranking import named, predictor_pair, staged, structure_leads
 from ...gap.records import Entry, Final, Refit, Structure
 from ...gap.reference import theta_box
 from ...gap.significance import MIN_SHRINK
@@ -74,7 +74,7 @@ def run_trial(
                     min_shrink, theta_box(theta, Bounds(*BOXES[box])))
     ranking, refit, structure = stages.ranked.entries, stages.refit, stages.structure
     scored, credited = stages.ranked.scored, stages.ranked.credited
-    best = next((e for e in ranking if e.significant), None)
+    best = named(ranking, stages.beyond_noise)
     final = None
     if best is not None:
         with stage(f"final fit: {best.effect}'s size re-identified with the base model on both flights"):
@@ -93,6 +93,7 @@ def run_trial(
               "structure": None if structure is None else _untheta(structure),
               "structure_named": structure_leads(ranking, structure),
               "recheck": [_untheta(e) for e in stages.recheck],
+              "beyond_noise": [_untheta(e) for e in stages.beyond_noise],
               "track": float(train_pred.track),
               "ranking": [_untheta(e) for e in ranking], "final": None if final is None else _untheta(final)}
     if inj.primary is not None:
