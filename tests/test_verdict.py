@@ -245,31 +245,62 @@ def test_process_noise_gives_way_to_an_effect_that_shrinks_the_gap_beyond_it(bey
 def test_the_staged_ranking_re_checks_beyond_process_noise_when_it_leads(monkeypatch):
     """When process noise is the box's best significant effect, the other candidates the restart filter does not
     read (not the bias's walk) are ranked again with its fitted gusts carried in every row, from its base
-    parameters; otherwise no such ranking is made."""
-    from jaxheli.gap import ranking
+    parameters; when none is significant there, the noise is ranked beyond the bias significant in the box, from
+    the bias's fit; otherwise no such ranking is made."""
+    from jaxheli.gap import noise_last, ranking
     from jaxheli.gap.candidates import Ranked
 
     (noise, delay, lag), beyond = _noise_first(True)
     noise = dataclasses.replace(noise, theta="noise")
+    bias = dataclasses.replace(delay, effect="output_bias_drift", shrink_pct=30.0, theta="bias")
     labels = ["input_delay", "process_noise", "output_bias_drift", "actuator_lag"]
-    asked = []
+    asked, answer = [], {}
 
     def fake_ranked(train, validate, theta, labels_, arrays, owner, max_steps, min_shrink, box_, carried=None):
         if carried is not None:
             asked.append((list(labels_), theta, carried))
             assert [len(a) for a in arrays] == [len(owner)] * 4 and sorted(set(owner)) == list(range(len(labels_)))
-            return Ranked(list(beyond), None, None, None, None)
+            return Ranked(answer[carried.effect], None, None, None, None)
         return Ranked(first, None, None, None, None)
 
     monkeypatch.setattr(ranking, "ranked", fake_ranked)
+    monkeypatch.setattr(noise_last, "ranked", fake_ranked)
     monkeypatch.setattr(ranking, "structure_hypothesis", lambda *a: None)
     monkeypatch.setattr(ranking, "theta_box", lambda theta, box_: box_)
+    monkeypatch.setattr(noise_last, "theta_box", lambda theta, box_: box_)
     arrays = tuple(np.arange(8)[:, None] for _ in range(4))
-    for first, expected in (([noise, delay, lag], [(["input_delay", "actuator_lag"], "noise", noise)]),
-                            ([delay, noise, lag], [])):
+    quiet = [dataclasses.replace(e, significant=False) for e in beyond]
+    after = dataclasses.replace(noise, shrink_pct=2.0, significant=False)
+    past_noise = (["input_delay", "actuator_lag"], "noise", noise)
+    for first, answer["process_noise"], expected, named in (
+            ([noise, delay, lag], list(beyond), [past_noise], "input_delay"),
+            ([noise, bias, delay, lag], list(beyond), [past_noise], "input_delay"),
+            ([noise, bias, lag], quiet, [past_noise, (["process_noise"], "bias", bias)], "output_bias_drift"),
+            ([noise, lag], quiet, [past_noise], "process_noise"),
+            ([delay, noise, lag], list(beyond), [], "input_delay")):
         asked.clear()
+        answer["output_bias_drift"] = [after]
         found = ranking.staged(None, None, "box", labels, arrays, np.repeat(np.arange(4), 2), 15, 5.0, Bounds())
-        assert asked == expected and found.beyond_noise == (tuple(beyond) if expected else ())
+        assert asked == expected
+        assert found.beyond_noise == (tuple(answer["process_noise"]) if expected else ())
+        assert dict(found.noise_beyond) == ({"output_bias_drift": after} if len(expected) > 1 else {})
+        assert ranking.named(first, found.beyond_noise, found.noise_beyond).effect == named
+
+
+def test_process_noise_gives_way_to_a_bias_it_adds_nothing_beyond():
+    """Nothing the filter does not read is significant beyond the noise: a bias walk significant in the box that the
+    noise adds nothing significant beyond is named in its place, with the noise's shrink beyond it; where the noise
+    is significant beyond the bias, the noise is named."""
+    ranking, beyond = _noise_first(False)
+    bias = dataclasses.replace(ranking[1], effect="output_bias_drift", shrink_pct=40.0)
+    ranking = [ranking[0], bias, ranking[2]]
+    after = dataclasses.replace(ranking[0], shrink_pct=2.0, shrink_se_pct=1.5, significant=False)
+    v = find(ranking, None, None, (), beyond, {"output_bias_drift": after})
+    assert v.effect is bias and v.noise is ranking[0] and v.noise_after is after
+    assert str(v).endswith("gap shrinks 40.0 % on the validation flight; process noise adds 2.0 +- 1.5 % beyond "
+                           "it, not significant")
+    v = find(ranking, None, None, (), beyond, {"output_bias_drift": dataclasses.replace(after, significant=True)})
+    assert v.effect is ranking[0] and v.noise is None and v.noise_after is None
 
 
 def test_carried_effect_parameters_come_before_the_nuisance_ones():

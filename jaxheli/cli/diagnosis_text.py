@@ -59,6 +59,10 @@ def ranking_table(diagnosis: Diagnosis) -> list[str]:
                      "is named in its place):")
         lines += [_row(e.effect, e.shrink_pct, e.shrink_se_pct, "*" if e.significant else "",
                        [e.shrink_by_channel[n] for n in names], e.fitted.summary) for e in found.beyond_noise]
+    for rival, e in found.noise_beyond.items():
+        lines.append(f"  process noise re-checked beyond {rival} (named in its place if not significant here):")
+        lines.append(_row(e.effect, e.shrink_pct, e.shrink_se_pct, "*" if e.significant else "",
+                          [e.shrink_by_channel[n] for n in names], e.fitted.summary))
     return lines
 
 

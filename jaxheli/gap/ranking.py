@@ -19,7 +19,8 @@ interval, gravity and restart-filter level."""
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from types import MappingProxyType
 from typing import NamedTuple
 
 import jax.numpy as jnp
@@ -35,6 +36,7 @@ from ..effects import registry as fx
 from .candidate_records import Entry, Refit, Structure
 from .candidates import Ranked, fit_and_score as fit_and_score, ranked
 from .final_fit import final_fit
+from .noise_last import beyond_noise, noise_beyond, padded_rows
 from .fit_effect import MAX_STEPS
 from .predictor import Predictor, make_predictor, tune_track
 from .records import Attribution
@@ -51,8 +53,10 @@ class Staged(NamedTuple):
     given base re-fitted alone in that box (``None``: frozen base), ``structure`` the hypothesis
     (:func:`~jaxheli.gap.structure.structure_hypothesis`), ``recheck`` the entries of the effects ranked again beyond
     the structure, in the physical ranges (:data:`RECHECK`; empty when not re-checked), the ``box`` the
-    ranking kept the base parameters in, and the entries of the effects ranked again beyond process noise when that
-    leads the ranking (``beyond_noise``, :func:`beyond_noise`; empty otherwise)."""
+    ranking kept the base parameters in, the entries of the effects ranked again beyond process noise when that
+    leads the ranking (``beyond_noise``, :func:`~jaxheli.gap.noise_last.beyond_noise`; empty otherwise), and the
+    noise's entries ranked beyond each other filtered disturbance, by its name (``noise_beyond``,
+    :func:`~jaxheli.gap.noise_last.noise_beyond`; empty unless nothing was significant beyond the noise)."""
 
     ranked: Ranked
     refit: Refit | None
@@ -60,6 +64,7 @@ class Staged(NamedTuple):
     recheck: tuple[Entry, ...]
     box: Bounds | None
     beyond_noise: tuple[Entry, ...] = ()
+    noise_beyond: Mapping[str, Entry] = MappingProxyType({})
 
 
 RECHECKS: tuple[str, ...] = ("significant", "all")
@@ -74,9 +79,6 @@ by what it explains beyond the widened base)."""
 
 if RECHECK not in RECHECKS:
     raise ValueError(f"{THRESHOLDS.source}: unknown recheck {RECHECK!r}; rechecks are {RECHECKS}")
-
-RECHECK_ROWS = 4
-"""The re-check's candidate rows are padded to a multiple of this, so its solver compiles for few batch shapes."""
 
 
 def _by_structure(
@@ -106,8 +108,7 @@ def _by_structure(
     idle = every and not structure_leads(first.entries, hypothesis)  # an effect outshrinks the structure
     if hypothesis is None or not hypothesis.significant or not chosen or idle:
         return Staged(first, first.refit, hypothesis, (), box)
-    rows = np.flatnonzero(np.isin(owner, chosen))
-    rows = np.r_[rows, np.full(-len(rows) % RECHECK_ROWS, rows[-1])]
+    rows = padded_rows(owner, chosen)
     with stage(f"re-check of {', '.join(labels[c] for c in chosen)} beyond the structure, in the physical ranges"
                ) as now:
         again = ranked(train, validate, hypothesis.theta, [labels[c] for c in chosen], tuple(a[rows] for a in arrays),
@@ -125,35 +126,20 @@ def staged(
     arrays: tuple[np.ndarray, ...], owner: np.ndarray, max_steps: int, min_shrink: float, box: Bounds | None,
 ) -> Staged:
     """The candidates ranked in the box and beyond the base model's structure (:func:`_by_structure`), and when
-    the best significant effect is process noise, the others ranked again beyond it (:func:`beyond_noise`)."""
+    the best significant effect is process noise, the effects the filter does not read ranked again beyond it
+    (:func:`~jaxheli.gap.noise_last.beyond_noise`); when none is significant there, the noise ranked beyond each
+    other filtered disturbance significant in the box (:func:`~jaxheli.gap.noise_last.noise_beyond`)."""
     stages = _by_structure(train, validate, theta, labels, arrays, owner, max_steps, min_shrink, box)
-    best = next((e for e in stages.ranked.entries if e.significant), None)
+    entries = stages.ranked.entries
+    best = next((e for e in entries if e.significant), None)
     if best is None or best.effect != NOISE or box is None:
         return stages
     again = beyond_noise(train, validate, labels, arrays, owner, best, max_steps, min_shrink, box)
-    return stages._replace(beyond_noise=again)
-
-
-def beyond_noise(
-    train: Predictor, validate: Predictor, labels: list[str], arrays: tuple[np.ndarray, ...], owner: np.ndarray,
-    noise: Entry, max_steps: int, min_shrink: float, box: Bounds,
-) -> tuple[Entry, ...]:
-    """The candidates ``labels`` (rows ``arrays``, candidate ``owner[r]`` for row ``r``) that the restart filter
-    does not read (:func:`~jaxheli.effects.registry.filtered`), ranked again with the ``noise`` entry's gusts freed
-    in every row, the reference's included, from its fit (its base parameters, gust and nuisance values), in ``box``
-    widened to hold them. White and coloured process noise is the filter-error method's model of whatever the base
-    model leaves unexplained, a wrong structure's misfit included; an effect that still shrinks the gap beyond it is
-    the finding (:func:`~jaxheli.gap.verdict.past_noise`). A second disturbance the filter estimates (a bias's walk)
-    is not ranked beyond the first: on turbulence, the walk took up the rotational gusts the wind model lacks."""
-    chosen = [c for c, name in enumerate(labels) if not fx.filtered(name)]
-    rows = np.flatnonzero(np.isin(owner, chosen))
-    rows = np.r_[rows, np.full(-len(rows) % RECHECK_ROWS, rows[-1])]
-    with stage(f"re-check of {len(chosen)} effects beyond process noise ({noise.fitted.summary})") as now:
-        again = ranked(train, validate, noise.theta, [labels[c] for c in chosen], tuple(a[rows] for a in arrays),
-                       np.searchsorted(chosen, owner[rows]), max_steps, min_shrink, theta_box(noise.theta, box),
-                       carried=noise)
-        now.outcome = f"significant beyond it: {', '.join(e.effect for e in again.entries if e.significant) or 'none'}"
-    return tuple(again.entries)
+    rivals = [e for e in entries if e.significant and e.effect != NOISE and fx.filtered(e.effect)]
+    if any(e.significant for e in again) or not rivals:
+        return stages._replace(beyond_noise=again)
+    return stages._replace(beyond_noise=again, noise_beyond=noise_beyond(
+        train, validate, labels, arrays, owner, rivals, max_steps, min_shrink, box))
 
 
 def _rank(
@@ -255,14 +241,14 @@ def diagnose_effects(
             combination = _combine(train, validate, base_theta, chosen, max_steps, min_shrink,
                                    _warm(ranking, chosen, train.outputs), shape, box)
             now.outcome = f"shrinks the held-out gap {combination.shrink_pct:.1f} %"
-    best = named(ranking, stages.beyond_noise)
+    best = named(ranking, stages.beyond_noise, stages.noise_beyond)
     final = None
     if best is not None and box is not None:
         with stage(f"final fit: {best.effect}'s size re-identified with the base model on both flights") as now:
             final = final_fit(train, validate, best, box)
             now.outcome = final.fitted.summary
     return Attribution(tuple(ranking), combination, refit, final, float(train.track), structure, stages.recheck,
-                       stages.beyond_noise)
+                       stages.beyond_noise, dict(stages.noise_beyond))
 
 
 def predictor_pair(

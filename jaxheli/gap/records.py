@@ -32,8 +32,9 @@ class Attribution:
     a box that already holds the physical ranges); the effects ranked again beyond the structure, in the physical
     ranges (``recheck``, :func:`~jaxheli.gap.ranking.staged`: where an effect is
     significant beyond the structure, :data:`~jaxheli.gap.ranking.RECHECK`); the effects ranked again beyond
-    process noise when that leads (``beyond_noise``, :func:`~jaxheli.gap.ranking.beyond_noise`). What they add up
-    to: :attr:`verdict`."""
+    process noise when that leads (``beyond_noise``, :func:`~jaxheli.gap.noise_last.beyond_noise`) and the noise
+    ranked beyond other filtered disturbances, by name (``noise_beyond``, :func:`~jaxheli.gap.noise_last.noise_beyond`).
+    What they add up to: :attr:`verdict`."""
 
     ranking: tuple[Entry, ...]
     combination: Entry | None
@@ -43,6 +44,7 @@ class Attribution:
     structure: Structure | None = None
     recheck: tuple[Entry, ...] = ()
     beyond_noise: tuple[Entry, ...] = ()
+    noise_beyond: Mapping[str, Entry] = dataclasses.field(default_factory=dict)
 
     @property
     def shown(self) -> tuple[Entry, ...]:
@@ -53,14 +55,17 @@ class Attribution:
     def verdict(self) -> Verdict:
         """What the ranking, the base re-fitted alone, the structure and the re-check found
         (:func:`~jaxheli.gap.verdict.find`; ``str()`` of it: the sentence ``diagnosis.json`` holds)."""
-        return find(self.ranking, self.base_refit, self.structure, self.recheck, self.beyond_noise)
+        return find(self.ranking, self.base_refit, self.structure, self.recheck, self.beyond_noise,
+                    self.noise_beyond)
 
     def to_json(self) -> dict[str, Any]:
-        """``{ranking, combination, base_refit, structure, recheck, beyond_noise, verdict, final, track}``."""
+        """``{ranking, combination, base_refit, structure, recheck, beyond_noise, noise_beyond, verdict, final,
+        track}``."""
         return {"ranking": [e.to_json() for e in self.ranking], "combination": _json(self.combination),
                 "base_refit": _json(self.base_refit) or {"joint": False}, "structure": _json(self.structure),
                 "recheck": [e.to_json() for e in self.recheck],
-                "beyond_noise": [e.to_json() for e in self.beyond_noise], "verdict": str(self.verdict),
+                "beyond_noise": [e.to_json() for e in self.beyond_noise],
+                "noise_beyond": {k: e.to_json() for k, e in self.noise_beyond.items()}, "verdict": str(self.verdict),
                 "final": _json(self.final), "track": self.track}
 
     @classmethod
@@ -71,7 +76,8 @@ class Attribution:
                      base_refit=Refit.from_json(data["base_refit"]), final=_maybe(Final.from_json, data["final"]),
                      structure=_maybe(Structure.from_json, data.get("structure")),
                      recheck=tuple(map(Entry.from_json, data.get("recheck", ()))),
-                     beyond_noise=tuple(map(Entry.from_json, data.get("beyond_noise", ()))))
+                     beyond_noise=tuple(map(Entry.from_json, data.get("beyond_noise", ()))),
+                     noise_beyond={k: Entry.from_json(v) for k, v in data.get("noise_beyond", {}).items()})
 
 
 @dataclasses.dataclass(frozen=True)

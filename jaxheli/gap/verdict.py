@@ -8,7 +8,8 @@ names no command-line option: the command line adds its own advice (``jaxheli.cl
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from types import MappingProxyType
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the rules read the records' fields only, so records.py can import this module
@@ -30,8 +31,10 @@ class Verdict:
         tied_with: the significant effects within the named effect's noise.
         outshrinks: the significant structure the named effect shrinks the gap further than (:func:`explains_more`:
             the effect is then not the structure's stand-in); ``None`` otherwise.
-        noise: the process noise the named effect was credited beyond (:func:`past_noise`; ``effect`` is then its
-            entry beyond the noise); ``None`` otherwise.
+        noise: the process noise the named effect was named in place of (:func:`past_noise`; ``effect`` is then its
+            entry beyond the noise, or, with ``noise_after``, its entry in the box); ``None`` otherwise.
+        noise_after: the noise's entry ranked beyond the named disturbance, where it added nothing significant;
+            ``None`` otherwise.
     """
 
     under_fitted: Refit | None = None
@@ -40,6 +43,7 @@ class Verdict:
     tied_with: tuple[str, ...] = ()
     outshrinks: Structure | None = None
     noise: Entry | None = None
+    noise_after: Entry | None = None
 
     @property
     def settled(self) -> bool:
@@ -55,23 +59,33 @@ NOISE = "process_noise"
 (:func:`past_noise`)."""
 
 
-def past_noise(effect: Entry | None, beyond: Sequence[Entry]) -> Entry | None:
-    """The effect named in place of process noise: when ``effect`` is process noise, the best significant entry of
-    ``beyond`` (the other candidates ranked again with the noise freed in every fit,
-    :func:`~jaxheli.gap.ranking.beyond_noise`); ``None`` otherwise. Process noise stands for whatever the base
+def past_noise(
+    ranking: Sequence[Entry], beyond: Sequence[Entry] = (), noise_beyond: Mapping[str, Entry] = MappingProxyType({}),
+) -> Entry | None:
+    """The effect named in place of process noise when that is the best significant entry of ``ranking``: the best
+    significant entry of ``beyond`` (the effects the filter does not read, ranked again with the noise freed in
+    every fit, :func:`~jaxheli.gap.noise_last.beyond_noise`), else the best significant disturbance of ``ranking``
+    that the noise adds nothing significant beyond (``noise_beyond``: the noise's entry ranked beyond each, by name,
+    :func:`~jaxheli.gap.noise_last.noise_beyond`); ``None`` otherwise. Process noise stands for whatever the base
     model leaves unexplained, a wrong structure's misfit included, so an effect that explains more is the finding."""
-    if effect is None or effect.effect != NOISE:
+    best = next((e for e in ranking if e.significant), None)
+    if best is None or best.effect != NOISE:
         return None
-    return next((e for e in beyond if e.significant), None)
+    return next((e for e in beyond if e.significant), None) or next(
+        (e for e in ranking if e.significant and e.effect in noise_beyond and not noise_beyond[e.effect].significant),
+        None)
 
 
-def named(ranking: Sequence[Entry], beyond: Sequence[Entry] = ()) -> Entry | None:
+def named(
+    ranking: Sequence[Entry], beyond: Sequence[Entry] = (), noise_beyond: Mapping[str, Entry] = MappingProxyType({}),
+) -> Entry | None:
     """The ranking entry of the effect a diagnosis names from the box's ``ranking`` (best first): the best
     significant one, or the effect named in its place beyond process noise (:func:`past_noise`); ``None``: none
     significant."""
-    best = next((e for e in ranking if e.significant), None)
-    instead = past_noise(best, beyond)
-    return best if instead is None else next(e for e in ranking if e.effect == instead.effect)
+    instead = past_noise(ranking, beyond, noise_beyond)
+    if instead is None:
+        return next((e for e in ranking if e.significant), None)
+    return next(e for e in ranking if e.effect == instead.effect)
 
 
 def explains_more(entry: Entry, structure: Structure | None) -> bool:
@@ -93,22 +107,23 @@ def structure_leads(ranking: Sequence[Entry], structure: Structure | None) -> bo
 def find(
     ranking: Sequence[Entry], refit: Refit | None = None, structure: Structure | None = None,
     recheck: Sequence[Entry] = (), beyond_noise: Sequence[Entry] = (),
+    noise_beyond: Mapping[str, Entry] = MappingProxyType({}),
 ) -> Verdict:
     """The verdict of a ``ranking`` (best first), the base re-fitted alone (``refit``, ``None``: frozen base), the
     base model's ``structure`` (:func:`~jaxheli.gap.structure.structure_hypothesis`), the entries ranked again
-    beyond it (``recheck``, best first, :func:`~jaxheli.gap.ranking.staged`) and beyond process noise
-    (``beyond_noise``, :func:`past_noise`). When the structure is named, the effect named is the significant one
-    that shrinks the gap furthest beyond it."""
+    beyond it (``recheck``, best first, :func:`~jaxheli.gap.ranking.staged`) and those of process noise's re-checks
+    (``beyond_noise``, ``noise_beyond``, :func:`past_noise`). When the structure is named, the effect named is the
+    significant one that shrinks the gap furthest beyond it."""
     if refit is not None and not refit.settled:
         return Verdict(under_fitted=refit)
     best = next((e for e in ranking if e.significant), None)
-    instead = past_noise(best, beyond_noise)
+    instead = past_noise(ranking, beyond_noise, noise_beyond)
     noise = None if instead is None else best
+    leads = structure_leads(ranking, structure)
+    effect = instead or best
     if instead is not None:
         best = next(e for e in ranking if e.effect == instead.effect)
-    leads = structure_leads(ranking, structure)
-    effect = best if instead is None else instead
-    if best is not None and leads and instead is None:
+    elif best is not None and leads:
         significant = {e.effect for e in ranking if e.significant}
         effect = next((r for r in recheck if r.effect in significant), best)
         best = next(e for e in ranking if e.effect == effect.effect)
@@ -116,9 +131,10 @@ def find(
         under_fitted=refit if refit is not None and refit.under_fitted else None,
         structure=structure if leads else None,
         effect=effect,
-        tied_with=(best.tied_with if instead is None else instead.tied_with) if best is not None else (),
+        tied_with=effect.tied_with if instead is not None else best.tied_with if best is not None else (),
         outshrinks=structure if best is not None and explains_more(best, structure) else None,
         noise=noise,
+        noise_after=noise_beyond.get(instead.effect) if instead is not None else None,
     )
 
 
@@ -134,7 +150,11 @@ def sentence(verdict: Verdict) -> str:
     else:
         tie = f", tied with {' and '.join(verdict.tied_with)}" if verdict.tied_with else ""
         text = f"{e.effect} ({e.fitted.summary}){tie}: gap shrinks {e.shrink_pct:.1f} % on the validation flight"
-        if verdict.noise is not None:
+        after = verdict.noise_after
+        if after is not None:
+            text += (f"; process noise adds {after.shrink_pct:.1f} +- {after.shrink_se_pct:.1f} % beyond it, not "
+                     f"significant")
+        elif verdict.noise is not None:
             text += f" beyond process noise ({verdict.noise.fitted.summary})"
         s = verdict.outshrinks
         if s is not None:

@@ -74,7 +74,7 @@ def run_trial(
                     min_shrink, theta_box(theta, Bounds(*BOXES[box])))
     ranking, refit, structure = stages.ranked.entries, stages.refit, stages.structure
     scored, credited = stages.ranked.scored, stages.ranked.credited
-    best = named(ranking, stages.beyond_noise)
+    best = named(ranking, stages.beyond_noise, stages.noise_beyond)
     final = None
     if best is not None:
         with stage(f"final fit: {best.effect}'s size re-identified with the base model on both flights"):
@@ -94,6 +94,7 @@ def run_trial(
               "structure_named": structure_leads(ranking, structure),
               "recheck": [_untheta(e) for e in stages.recheck],
               "beyond_noise": [_untheta(e) for e in stages.beyond_noise],
+              "noise_beyond": {k: _untheta(e) for k, e in stages.noise_beyond.items()},
               "track": float(train_pred.track),
               "ranking": [_untheta(e) for e in ranking], "final": None if final is None else _untheta(final)}
     if inj.primary is not None:
