@@ -225,8 +225,8 @@ def _noise_first(beyond_significant: bool):
 @pytest.mark.parametrize("beyond_significant", [True, False])
 def test_process_noise_gives_way_to_an_effect_that_shrinks_the_gap_beyond_it(beyond_significant):
     """Process noise leads the ranking: a delay significant beyond it (its gusts freed in every fit) is named in its
-    place, with its shrink beyond the noise and the noise named after it; with nothing significant beyond it, the
-    noise itself is named."""
+    place, with its shrink beyond the noise and the noise named after it; with nothing significant beyond it, or
+    only at a training likelihood ratio weaker than the threshold's p of 1e-8, the noise itself is named."""
     from jaxheli.gap.verdict import named
 
     ranking, beyond = _noise_first(beyond_significant)
@@ -240,6 +240,8 @@ def test_process_noise_gives_way_to_an_effect_that_shrinks_the_gap_beyond_it(bey
         assert v.effect is ranking[0] and v.noise is None and named(ranking, beyond) is ranking[0]
         assert str(v).startswith("process_noise (")
     assert find(ranking[1:], None, None, (), beyond).effect is ranking[1]  # noise not first: nothing changes
+    weak = (dataclasses.replace(beyond[0], lr=dataclasses.replace(beyond[0].lr, p_value=1e-4)),) + beyond[1:]
+    assert beyond[0].lr.p_value <= 1e-8 and find(ranking, None, None, (), weak).effect is ranking[0]
 
 
 def test_the_staged_ranking_re_checks_beyond_process_noise_when_it_leads(monkeypatch):

@@ -44,7 +44,7 @@ from .reference import theta_box
 from .significance import MIN_SHRINK
 from .structure import physical_box, structure_hypothesis
 from .thresholds import THRESHOLDS
-from .verdict import NOISE, explains_more, named as named, structure_leads as structure_leads
+from .verdict import NOISE, credited_past_noise, explains_more, named as named, structure_leads as structure_leads
 
 
 class Staged(NamedTuple):
@@ -127,7 +127,7 @@ def staged(
 ) -> Staged:
     """The candidates ranked in the box and beyond the base model's structure (:func:`_by_structure`), and when
     the best significant effect is process noise, the effects the filter does not read ranked again beyond it
-    (:func:`~jaxheli.gap.noise_last.beyond_noise`); when none is significant there, the noise ranked beyond each
+    (:func:`~jaxheli.gap.noise_last.beyond_noise`); when none is credited there, the noise ranked beyond each
     other filtered disturbance significant in the box (:func:`~jaxheli.gap.noise_last.noise_beyond`)."""
     stages = _by_structure(train, validate, theta, labels, arrays, owner, max_steps, min_shrink, box)
     entries = stages.ranked.entries
@@ -136,7 +136,7 @@ def staged(
         return stages
     again = beyond_noise(train, validate, labels, arrays, owner, best, max_steps, min_shrink, box)
     rivals = [e for e in entries if e.significant and e.effect != NOISE and fx.filtered(e.effect)]
-    if any(e.significant for e in again) or not rivals:
+    if any(credited_past_noise(e) for e in again) or not rivals:
         return stages._replace(beyond_noise=again)
     return stages._replace(beyond_noise=again, noise_beyond=noise_beyond(
         train, validate, labels, arrays, owner, rivals, max_steps, min_shrink, box))
