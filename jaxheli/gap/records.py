@@ -25,16 +25,16 @@ from .verdict import Verdict, find
 
 @dataclasses.dataclass(frozen=True)
 class Attribution:
-    """Which effect (:func:`~jaxheli.gap.ranking.diagnose_effects`): the ranking, best first; the joint fit of
-    the significant effects (``None`` unless two or more); the base re-fitted alone (``None``: frozen base); the
-    named effect (:func:`~jaxheli.gap.verdict.named`) re-identified on both flights (``None`` without one, or frozen); the
-    restart filter's level every fit used; the base model's structure as a hypothesis (``None``: frozen base, or
-    a box that already holds the physical ranges); the effects ranked again beyond the structure, in the physical
-    ranges (``recheck``, :func:`~jaxheli.gap.ranking.staged`: where an effect is
-    significant beyond the structure, :data:`~jaxheli.gap.ranking.RECHECK`); the effects ranked again beyond
-    process noise when that leads (``beyond_noise``, :func:`~jaxheli.gap.noise_last.beyond_noise`) and the noise
-    ranked beyond other filtered disturbances, by name (``noise_beyond``, :func:`~jaxheli.gap.noise_last.noise_beyond`).
-    What they add up to: :attr:`verdict`."""
+    """Which effect (:func:`~jaxheli.gap.ranking.diagnose_effects`): the ranking, best first; the joint fit of the
+    significant effects (``None`` unless two or more); the base re-fitted alone (``None``: frozen base); the named
+    effect (:func:`~jaxheli.gap.verdict.named`) re-identified on both flights (``None`` without one, or frozen); the
+    restart filter's level every fit used; the base model's structure as a hypothesis (``None``: frozen base, or a
+    box that already holds the physical ranges); the effects ranked again beyond the structure, in the physical
+    ranges (``recheck``, :func:`~jaxheli.gap.ranking.staged`: where an effect is significant beyond the structure,
+    :data:`~jaxheli.gap.ranking.RECHECK`); the effects ranked again beyond process noise when that leads
+    (``beyond_noise``, :func:`~jaxheli.gap.noise_last.beyond_noise`) and the noise ranked beyond other filtered
+    disturbances, by name (``noise_beyond``, :func:`~jaxheli.gap.noise_last.noise_beyond`). What they add up to:
+    :attr:`verdict`."""
 
     ranking: tuple[Entry, ...]
     combination: Entry | None

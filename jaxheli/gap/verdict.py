@@ -75,10 +75,11 @@ def past_noise(
 ) -> Entry | None:
     """The effect named in place of process noise when that is the best significant entry of ``ranking``: the best
     entry of ``beyond`` (the effects the filter does not read, ranked again with the noise freed in every fit,
-    :func:`~jaxheli.gap.noise_last.beyond_noise`) credited there (:func:`credited_past_noise`), else the best significant disturbance of ``ranking``
-    that the noise adds nothing significant beyond (``noise_beyond``: the noise's entry ranked beyond each, by name,
-    :func:`~jaxheli.gap.noise_last.noise_beyond`); ``None`` otherwise. Process noise stands for whatever the base
-    model leaves unexplained, a wrong structure's misfit included, so an effect that explains more is the finding."""
+    :func:`~jaxheli.gap.noise_last.beyond_noise`) credited there (:func:`credited_past_noise`), else the best
+    significant disturbance of ``ranking`` that the noise adds nothing significant beyond (``noise_beyond``: the
+    noise's entry ranked beyond each, by name, :func:`~jaxheli.gap.noise_last.noise_beyond`); ``None`` otherwise.
+    Process noise stands for whatever the base model leaves unexplained, a wrong structure's misfit included, so an
+    effect that explains more is the finding."""
     best = next((e for e in ranking if e.significant), None)
     if best is None or best.effect != NOISE:
         return None
