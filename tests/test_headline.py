@@ -2,13 +2,15 @@
 model's shortfalls; where an unexplained, stick-driven gap lies instead of "no significant effect"; no parameter
 lists."""
 
+import dataclasses
+
 import pytest
 
 from jaxheli.gap.headline import NO_EFFECT, headline
 from jaxheli.gap.localisation_record import LagPair, Summary
 from jaxheli.gap.verdict import find
 
-from test_verdict import _cases
+from test_verdict import _cases, _noise_first
 
 
 def _where(coherent: bool = True, lagged: bool = True) -> Summary:
@@ -66,3 +68,16 @@ def test_a_base_still_converging_attributes_nothing():
         line = headline(find(*_cases()[name]), (), _where())
         assert line == ("the base model is still converging (training RSS down 3.2 % over its last 60 steps): no "
                         "effect attributed"), name
+
+
+def test_an_effect_named_in_place_of_process_noise_says_beyond_what_it_shrinks_the_gap():
+    """Named beyond the noise, the effect's shrink is its shrink beyond the noise; a bias the noise adds nothing
+    beyond is named with its own shrink."""
+    ranking, beyond = _noise_first(True)
+    line = headline(find(ranking, None, None, (), beyond), (), _where())
+    assert line == "lat input delay delay 80 +- 5 ms: the validation gap shrinks 12 % beyond process noise"
+    ranking, quiet = _noise_first(False)
+    bias = dataclasses.replace(ranking[1], effect="output_bias_drift", shrink_pct=40.0)
+    after = dataclasses.replace(ranking[0], shrink_pct=2.0, significant=False)
+    line = headline(find([ranking[0], bias], None, None, (), quiet, {"output_bias_drift": after}), (), _where())
+    assert line.endswith(": the validation gap shrinks 40 %")

@@ -46,9 +46,10 @@ def defects(consistency: Sequence[Mapping[str, Any]]) -> list[str]:
 
 def found(verdict: Verdict, where: Summary) -> str:
     """What ``verdict`` found, in words and percentages: the effect (its fitted size, its shrink of the validation
-    gap, beyond the structure when the structure is named), then the base model's structure and under-fit with
-    their shrinks; with no effect, where the base model's gap lies (``where``, the localisation's summary) when
-    the sticks explain it (:func:`unexplained`), else :data:`NO_EFFECT`."""
+    gap, beyond process noise when named in its place, else beyond the structure when the structure is named), then
+    the base model's structure and under-fit with their shrinks; with no effect, where the base model's gap lies
+    (``where``, the localisation's summary) when the sticks explain it (:func:`unexplained`), else
+    :data:`NO_EFFECT`."""
     refit = verdict.under_fitted
     if refit is not None and not refit.settled:
         return (f"the base model is still converging (training RSS down {refit.progress_pct:.1f} % over its last "
@@ -58,6 +59,8 @@ def found(verdict: Verdict, where: Summary) -> str:
     if e is not None:
         tie = f" (tied with {' and '.join(verdict.tied_with)})" if verdict.tied_with else ""
         beyond = " beyond the base model's structure" if verdict.structure is not None else ""
+        if verdict.noise is not None:
+            beyond = " beyond process noise" if verdict.noise_after is None else ""
         parts.append(f"{e.fitted.summary}{tie}: the validation gap shrinks {e.shrink_pct:.0f} %{beyond}")
     s = verdict.structure
     if s is not None:
