@@ -9,7 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..gap.ranking import RECHECK
-from ..gap.records import Diagnosis
+from ..gap.records import Diagnosis, Entry
 from ..gap.verdict import Verdict, still_converging, under_fitted
 
 
@@ -52,18 +52,21 @@ def ranking_table(diagnosis: Diagnosis) -> list[str]:
     if found.recheck:
         rule = "where it is significant here" if RECHECK == "all" else "only if here too"
         lines.append(f"  re-checked beyond the structure, in the physical ranges (significant above {rule}):")
-        lines += [_row(e.effect, e.shrink_pct, e.shrink_se_pct, "*" if e.significant else "",
-                       [e.shrink_by_channel[n] for n in names], e.fitted.summary) for e in found.recheck]
+        lines += [_entry_row(e, names) for e in found.recheck]
     if found.beyond_noise:
-        lines.append("  re-checked beyond process noise, its gusts freed in every fit (the best significant here "
-                     "is named in its place):")
-        lines += [_row(e.effect, e.shrink_pct, e.shrink_se_pct, "*" if e.significant else "",
-                       [e.shrink_by_channel[n] for n in names], e.fitted.summary) for e in found.beyond_noise]
+        lines.append("  re-checked beyond process noise, its gusts freed in every fit (one significant here, its "
+                     "likelihood-ratio p within the threshold too, is named in its place):")
+        lines += [_entry_row(e, names) for e in found.beyond_noise]
     for rival, e in found.noise_beyond.items():
         lines.append(f"  process noise re-checked beyond {rival} (named in its place if not significant here):")
-        lines.append(_row(e.effect, e.shrink_pct, e.shrink_se_pct, "*" if e.significant else "",
-                          [e.shrink_by_channel[n] for n in names], e.fitted.summary))
+        lines.append(_entry_row(e, names))
     return lines
+
+
+def _entry_row(e: Entry, names: Sequence[str]) -> str:
+    """A line of :func:`ranking_table` for a re-checked entry: significant (``*``) or not."""
+    return _row(e.effect, e.shrink_pct, e.shrink_se_pct, "*" if e.significant else "",
+                [e.shrink_by_channel[n] for n in names], e.fitted.summary)
 
 
 def _row(label: str, shrink: float, se: float, mark: str, channels: Sequence[float], note: str) -> str:

@@ -64,9 +64,8 @@ NOISE = "process_noise"
 def credited_past_noise(entry: Entry) -> bool:
     """Whether an effect ranked beyond process noise (:func:`~jaxheli.gap.noise_last.beyond_noise`) is named in its
     place: significant there, and its training flight's likelihood ratio over the noise alone at
-    :data:`~jaxheli.gap.significance.LR_P` or less. Beyond a disturbance model every held-out shrink is small and
-    noisy: on design seeds 30-32 and 96-99 a Dryden flight's sensor misalignment stood at 5.0 +- 1.7 % beyond the
-    gusts (p 8e-5), the three effects named right at p 6e-28, 5e-48 and 3e-9."""
+    :data:`~jaxheli.gap.significance.LR_P` or less: beyond a disturbance model every held-out shrink is small and
+    noisy (the design figures: ``docs/blind_history.md``, "process noise named last")."""
     return bool(entry.significant and entry.lr.p_value <= THRESHOLDS.lr_p)
 
 
@@ -128,14 +127,12 @@ def find(
     significant one that shrinks the gap furthest beyond it."""
     if refit is not None and not refit.settled:
         return Verdict(under_fitted=refit)
-    best = next((e for e in ranking if e.significant), None)
     instead = past_noise(ranking, beyond_noise, noise_beyond)
-    noise = None if instead is None else best
+    noise = None if instead is None else next(e for e in ranking if e.significant)
+    best = named(ranking, beyond_noise, noise_beyond)
     leads = structure_leads(ranking, structure)
     effect = instead or best
-    if instead is not None:
-        best = next(e for e in ranking if e.effect == instead.effect)
-    elif best is not None and leads:
+    if instead is None and best is not None and leads:
         significant = {e.effect for e in ranking if e.significant}
         effect = next((r for r in recheck if r.effect in significant), best)
         best = next(e for e in ranking if e.effect == effect.effect)
