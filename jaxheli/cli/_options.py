@@ -15,6 +15,9 @@ from typing import Any
 from ..data.flight import FlightData
 from ..flights import load_flight
 
+Options = argparse.ArgumentParser | argparse._ArgumentGroup
+"""Where an option is added: a command's parser, or one of its groups (the sections of its ``--help``)."""
+
 FLIGHT = "FILE[:t0-t1]"
 """How every option that names a flight shows it: a file, optionally cut to a window (s)."""
 
@@ -70,7 +73,7 @@ def adopt_as_data(namespace: argparse.Namespace, spec: str) -> None:
     namespace.data = spec
 
 
-def add_data_option(p: argparse.ArgumentParser, role: str, *, aliases: Sequence[str] = (), several: bool = False,
+def add_data_option(p: Options, role: str, *, aliases: Sequence[str] = (), several: bool = False,
                     required: bool = False, positional_form: bool = False) -> None:
     """Add ``--data FILE[:t0-t1]``, the flights a command reads, with ``role`` (what they are for) before the
     common help. ``several``: one or more after each ``--data``, which may be repeated (a list, ``None`` when
@@ -87,14 +90,14 @@ def add_data_option(p: argparse.ArgumentParser, role: str, *, aliases: Sequence[
                            new="--data FILE", adopt=adopt_as_data)
 
 
-def add_flight_option(p: argparse.ArgumentParser, name: str, role: str, *, required: bool = False) -> None:
+def add_flight_option(p: Options, name: str, role: str, *, required: bool = False) -> None:
     """Add an option ``name FILE[:t0-t1]`` for one flight in a role of its own (e.g. ``--validate``), read like
     ``--data``."""
     p.add_argument(name, default=None, required=required, action=_OneFlight, metavar=FLIGHT,
                    help=f"{role}: {FLIGHT_HELP}" + (" (required)" if required else ""))
 
 
-def add_load_options(p: argparse.ArgumentParser) -> None:
+def add_load_options(p: Options) -> None:
     """Add ``--strict/--no-strict``, ``--missing-inputs`` and ``--channel-map`` to the parser of a command that
     reads flights."""
     p.add_argument("--strict", action=argparse.BooleanOptionalAction, default=True,
@@ -109,7 +112,7 @@ def add_load_options(p: argparse.ArgumentParser) -> None:
                         'default map')
 
 
-def add_quiet_option(p: argparse.ArgumentParser) -> None:
+def add_quiet_option(p: Options) -> None:
     """Add ``--quiet`` to the parser of a long-running command: without it, the command writes a progress line to
     stderr at each stage and whenever a stage runs long (:func:`jaxheli._progress.reporting`)."""
     p.add_argument("--quiet", action="store_true",
@@ -156,7 +159,7 @@ def read_flight(spec: str, args: argparse.Namespace) -> FlightData:
     return flight
 
 
-def add_sim_options(p: argparse.ArgumentParser) -> None:
+def add_sim_options(p: Options) -> None:
     """Add ``--outputs``, ``--hold``, ``--g`` and ``--segment`` to the parser of a command that simulates."""
     p.add_argument("--outputs", default=None, help="comma-separated channels, e.g. p,q,phi,theta (default: all measured)")
     p.add_argument("--hold", choices=("zoh", "foh"), default="zoh", help="input hold between samples (default zoh)")

@@ -37,67 +37,83 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     """Register ``identify`` on the ``jaxheli`` command line."""
     p = subparsers.add_parser("identify", help="fit the 40 parameters to a flight (IWO, GA, PEM, IWO + polish, "
                                                "frequency domain)")
-    p.add_argument("--method", choices=METHODS, default="iwo+freq+polish",
-                   help="engine (default iwo+freq+polish: IWO, its best starting the frequency fit, then the "
-                        "polish); freq: frequency responses fitted on Tischler's cost J (CIFER); freq+polish: then "
-                        "the time-domain polish")
-    add_data_option(p, f"the training flight(s), several fitted at once, each its own initial state, costs added "
-                       f"(default: {DEFAULT_DATA})", aliases=("--train",), several=True)
-    add_flight_option(p, "--validate", "the validation flight (optional)")
-    p.add_argument("--out", default="jaxheli-result", help="output folder (result.json, result.npz, PNGs)")
-    p.add_argument("--iterations", type=int, default=None, help="IWO / GA generations (default 1000, the paper)")
-    p.add_argument("--trials", type=int, default=1, help="independent trials for 95%% intervals (the paper: 10)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.eqx")
-    p.add_argument("--checkpoint-every", type=int, default=None, metavar="N",
-                   help="write OUT/checkpoint.eqx every N generations (default 50); a resume continues from it")
-    p.add_argument("--search-precision", choices=("float32", "float64"), default=None,
-                   help="arithmetic of the IWO / GA population scoring (default float32: fast, checked against float64)")
-    add_load_options(p)
-    p.add_argument("--cost", choices=SEARCH_COSTS, default=None,
-                   help="what IWO / GA minimise: pearson (default, the paper's Eq. 7) or output-error")
-    p.add_argument("--polish-objective", choices=POLISH_OBJECTIVES, default=None,
-                   help="what the polish of iwo+polish minimises: output-error (default: normalised output errors, "
-                        "every run from its least-squares state, runs shortened where the model is unstable), "
-                        "pearson (with --cost pearson: the paper's pure pipeline) or pem")
-    p.add_argument("--polish-steps", type=int, default=None,
-                   help="Levenberg-Marquardt steps per polish round (default 100)")
-    p.add_argument("--polish-rounds", type=int, default=None,
-                   help="output-error polish: at most this many rounds, the first on 5 s then 20 s runs (default 4)")
-    p.add_argument("--cv-windows", type=int, default=None, metavar="W",
-                   help="output-error polish on one flight: choose its last run length (5 s, 20 s, a window's length) "
-                        "and stopping round by leave-one-window-out cross-validation over W windows of the flight "
-                        "(W fits of each run length, each on W - 1 windows; default 0: the full schedule)")
-    p.add_argument("--box", choices=BOXES, default="authors",
-                   help="search box: authors (default, their config_iwo.m; Lw, Mw, Nw, Yped, Mcol pinned at 0) or wide "
-                        "(the physical ranges, jaxheli.model.WIDE_LOWER/UPPER, every parameter free)")
-    p.add_argument("--structure", action="store_true",
-                   help="model-structure determination after the fit: fix the parameters the flight cannot "
-                        "determine (unresolved, relative Cramer-Rao bound > 20 %%, or the worse of a pair correlated "
-                        "> 0.95) to the prior, 0 or the nearest bound and re-fit (methods pem and *+polish)")
-    p.add_argument("--prior", default=None, metavar="MODEL",
-                   help="a prior model (result.json or table2): a Gaussian prior in the local fits (PEM, polish) "
-                        "and the values --structure fixes parameters at")
-    p.add_argument("--prior-sd", type=float, default=None, metavar="PCT",
-                   help=f"the prior's standard deviation, %% of each value, floored at 1 %% of the parameter's "
-                        f"physical range (default {PRIOR_SD:g})")
-    p.add_argument("--freq-starts", type=int, default=None, metavar="K",
-                   help="freq: Levenberg-Marquardt starts, the best of --freq-screen draws in the box (default "
-                        f"{_FREQ_DEFAULTS['starts']})")
-    p.add_argument("--freq-screen", type=int, default=None, metavar="S",
-                   help=f"freq: points drawn in the box and scored on J to choose the starts (default "
-                        f"{_FREQ_DEFAULTS['screen']})")
-    p.add_argument("--freq-steps", type=int, default=None, metavar="N",
-                   help=f"freq: Levenberg-Marquardt step limit of each start (default {_FREQ_DEFAULTS['max_steps']})")
-    p.add_argument("--freq-band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
-                   help="freq: fitted band, Hz (default 0.1 Hz to a third of Nyquist, at most 10 Hz)")
-    p.add_argument("--fit-dt", type=fit_step, default=None, metavar="S",
-                   help="step the fit runs at, s: 'auto' (a flight low-passed by jaxheli prepare --lowpass at a "
-                        "step of about 1 / (8 x its cut-off), the others at their own), 'full' (default: every "
-                        "flight at its own step) or seconds (the flight must be low-passed below that step's "
-                        "Nyquist rate); scores and standard errors use each flight's own step")
-    add_sim_options(p)
-    add_quiet_option(p)
+    run = p.add_argument_group("what to fit, and where the results go")
+    run.add_argument("--method", choices=METHODS, default="iwo+freq+polish",
+                     help="engine (default iwo+freq+polish: IWO, its best starting the frequency fit, then the "
+                          "polish); freq: frequency responses fitted on Tischler's cost J (CIFER); freq+polish: "
+                          "then the time-domain polish")
+    add_data_option(run, f"the training flight(s), several fitted at once, each its own initial state, costs "
+                         f"added (default: {DEFAULT_DATA})", aliases=("--train",), several=True)
+    add_flight_option(run, "--validate", "the validation flight (optional)")
+    run.add_argument("--out", default="jaxheli-result", help="output folder (result.json, result.npz, PNGs)")
+    run.add_argument("--trials", type=int, default=1, help="independent trials for 95%% intervals (the paper: 10)")
+    run.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    add_quiet_option(run)
+
+    search = p.add_argument_group(f"the search (methods {used_by('iterations')})")
+    search.add_argument("--iterations", type=int, default=None,
+                        help="IWO / GA generations (default 1000, the paper)")
+    search.add_argument("--cost", choices=SEARCH_COSTS, default=None,
+                        help="what IWO / GA minimise: pearson (default, the paper's Eq. 7) or output-error")
+    search.add_argument("--search-precision", choices=("float32", "float64"), default=None,
+                        help="arithmetic of the IWO / GA population scoring (default float32: fast, checked "
+                             "against float64)")
+    search.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.eqx")
+    search.add_argument("--checkpoint-every", type=int, default=None, metavar="N",
+                        help="write OUT/checkpoint.eqx every N generations (default 50); a resume continues from it")
+
+    polish = p.add_argument_group(f"the polish, Levenberg-Marquardt after the search (methods "
+                                  f"{used_by('polish_steps')})")
+    polish.add_argument("--polish-objective", choices=POLISH_OBJECTIVES, default=None,
+                        help="what the polish minimises: output-error (default: normalised output errors, every "
+                             "run from its least-squares state, runs shortened where the model is unstable), "
+                             "pearson (with --cost pearson: the paper's pure pipeline) or pem")
+    polish.add_argument("--polish-steps", type=int, default=None,
+                        help="Levenberg-Marquardt steps per polish round (default 100)")
+    polish.add_argument("--polish-rounds", type=int, default=None,
+                        help="output-error polish: at most this many rounds, the first on 5 s then 20 s runs "
+                             "(default 4)")
+    polish.add_argument("--cv-windows", type=int, default=None, metavar="W",
+                        help="output-error polish on one flight: choose its last run length (5 s, 20 s, a window's "
+                             "length) and stopping round by leave-one-window-out cross-validation over W windows "
+                             "of the flight (W fits of each run length, each on W - 1 windows; default 0: the full "
+                             "schedule)")
+
+    model = p.add_argument_group("the model: box, structure, prior, fit step")
+    model.add_argument("--box", choices=BOXES, default="authors",
+                       help="search box: authors (default, their config_iwo.m; Lw, Mw, Nw, Yped, Mcol pinned at 0) "
+                            "or wide (the physical ranges, jaxheli.model.WIDE_LOWER/UPPER, every parameter free)")
+    model.add_argument("--structure", action="store_true",
+                       help="model-structure determination after the fit: fix the parameters the flight cannot "
+                            "determine (unresolved, relative Cramer-Rao bound > 20 %%, or the worse of a pair "
+                            "correlated > 0.95) to the prior, 0 or the nearest bound and re-fit (methods pem and "
+                            "*+polish)")
+    model.add_argument("--prior", default=None, metavar="MODEL",
+                       help="a prior model (result.json or table2): a Gaussian prior in the local fits (PEM, "
+                            "polish) and the values --structure fixes parameters at")
+    model.add_argument("--prior-sd", type=float, default=None, metavar="PCT",
+                       help=f"the prior's standard deviation, %% of each value, floored at 1 %% of the parameter's "
+                            f"physical range (default {PRIOR_SD:g})")
+    model.add_argument("--fit-dt", type=fit_step, default=None, metavar="S",
+                       help="step the fit runs at, s: 'auto' (a flight low-passed by jaxheli prepare --lowpass at a "
+                            "step of about 1 / (8 x its cut-off), the others at their own), 'full' (default: every "
+                            "flight at its own step) or seconds (the flight must be low-passed below that step's "
+                            "Nyquist rate); scores and standard errors use each flight's own step")
+
+    freq = p.add_argument_group(f"the frequency-domain fit (methods {used_by('freq_options')})")
+    freq.add_argument("--freq-starts", type=int, default=None, metavar="K",
+                      help="Levenberg-Marquardt starts, the best of --freq-screen draws in the box (default "
+                           f"{_FREQ_DEFAULTS['starts']})")
+    freq.add_argument("--freq-screen", type=int, default=None, metavar="S",
+                      help=f"points drawn in the box and scored on J to choose the starts (default "
+                           f"{_FREQ_DEFAULTS['screen']})")
+    freq.add_argument("--freq-steps", type=int, default=None, metavar="N",
+                      help=f"Levenberg-Marquardt step limit of each start (default {_FREQ_DEFAULTS['max_steps']})")
+    freq.add_argument("--freq-band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                      help="fitted band, Hz (default 0.1 Hz to a third of Nyquist, at most 10 Hz)")
+
+    add_sim_options(p.add_argument_group("simulation"))
+    add_load_options(p.add_argument_group("reading logs (.px4log .bin .ulg) and checking flights"))
     p.set_defaults(func=_cmd_identify)
     return p
 
