@@ -39,6 +39,11 @@ Usage::
     python benchmarks/identification.py real --methods iwo+freq+polish --cv-windows 0 --train C "A, last 40 %"
     python benchmarks/identification.py real --methods iwo+freq+polish --cv-windows 0 --iterations 1000 \
         --recipes default physical structure physical+structure prior
+    python benchmarks/identification.py real --methods iwo+freq+polish --cv-windows 0 --iterations 1000 \
+        --recipes default physical --seeds 0 1 2 --trials 1
+
+``--seeds`` runs every fit once per seed (``--trials`` trials each, the best kept); with several, ``tables.md`` adds
+each held-out score's median and range over the seeds, the spread a recipe's single run stands in for.
 
 Writes ``rows.json``, ``record.json`` (the rows with the run's settings, for ``docs/gen_benchmarks.py record``) and
 ``tables.md`` under ``--out`` (default ``results/identification/<part>``), after every run.
@@ -103,14 +108,15 @@ def _synthetic(args: argparse.Namespace, out: Path) -> list[dict]:
     for name, (theta, (lower, upper)) in TRUTHS.items():
         for noise in args.noises:
             train, validate = synthetic_flights(theta, noise)
-            for method in args.methods:
+            for method, seed in [(m, s) for m in args.methods for s in args.seeds]:
                 t0 = time.perf_counter()
-                res = identify(train, method=method, validate=validate, seed=args.seed, lower=lower, upper=upper,
-                               truth=theta, **_search(method, args.iterations))
+                res = identify(train, method=method, validate=validate, seed=seed, trials=args.trials, lower=lower,
+                               upper=upper, truth=theta, **_search(method, args.iterations))
                 fit = res.validate["fit_percent"]
                 truth_fit = res.truth["validate"]["fit_percent"]
                 rows.append({
-                    "truth": name, "noise": noise, "method": method, "seconds": time.perf_counter() - t0,
+                    "truth": name, "noise": noise, "method": method, "seed": seed, "trials": args.trials,
+                    "seconds": time.perf_counter() - t0,
                     "fit_percent": fit, "truth_fit_percent": truth_fit,
                     "shortfall": max(truth_fit[c] - fit[c] for c in fit),
                     "pearson": res.validate["pearson"], "tic": res.validate["tic"],
@@ -118,20 +124,20 @@ def _synthetic(args: argparse.Namespace, out: Path) -> list[dict]:
                     "identifiable": len(res.truth["cramer_rao"]["identifiable"]),
                 })
                 _write(out, rows, _synthetic_table(rows, args))
-                print(f"{name} noise {noise} {method}: {rows[-1]['seconds']:.0f} s, shortfall "
+                print(f"{name} noise {noise} {method} seed {seed}: {rows[-1]['seconds']:.0f} s, shortfall "
                       f"{rows[-1]['shortfall']:.2f} points, CR {rows[-1]['cramer_rao_within']:.2f}", flush=True)
     return rows
 
 
 def _synthetic_table(rows: list[dict], args: argparse.Namespace) -> str:
-    lines = [f"# Synthetic recovery ({_machine()}; {args.iterations} generations, seed {args.seed})", "",
+    lines = [f"# Synthetic recovery ({_machine()}; {args.iterations} generations, {_seeds(args)})", "",
              "Validation fit % per channel, model / truth (initial state estimated); CR: share of identifiable "
              "parameters within 3 Cramer-Rao standard errors of the truth.", "",
-             "| truth | noise | method | s | " + " | ".join(SYNTH_CHANNELS) + " | worst shortfall | CR |",
-             "|---" * (len(SYNTH_CHANNELS) + 6) + "|"]
+             "| truth | noise | method | seed | s | " + " | ".join(SYNTH_CHANNELS) + " | worst shortfall | CR |",
+             "|---" * (len(SYNTH_CHANNELS) + 7) + "|"]
     for r in rows:
         cells = " | ".join(f"{r['fit_percent'][c]:.1f} / {r['truth_fit_percent'][c]:.1f}" for c in SYNTH_CHANNELS)
-        lines.append(f"| {r['truth']} | {r['noise']:g} | {r['method']} | {r['seconds']:.0f} | {cells} | "
+        lines.append(f"| {r['truth']} | {r['noise']:g} | {r['method']} | {r['seed']} | {r['seconds']:.0f} | {cells} | "
                      f"{r['shortfall']:.2f} | {r['cramer_rao_within']:.2f} of {r['identifiable']} |")
     return "\n".join(lines) + "\n"
 
@@ -210,29 +216,30 @@ def _real(args: argparse.Namespace, out: Path) -> list[dict]:
                      **_real_scores(TABLE2, validation)})
     for train_label, train in trains.items():
         for recipe, options in recipes.items():
-            for method in args.methods:
+            for method, seed in [(m, s) for m in args.methods for s in args.seeds]:
                 for cv in args.cv_windows if method.endswith("+polish") else [0]:
-                    rows += _real_fit(args, train_label, train, validations, recipe, method, cv, options)
-                    _write(out, rows, _real_table(rows, args) + "\n" + excitation, args)
+                    rows += _real_fit(args, train_label, train, validations, recipe, method, cv, options, seed)
+                    _write(out, rows, _real_table(rows, args) + "\n" + _spread_table(rows) + "\n" + excitation, args)
     return rows
 
 
 def _real_fit(args: argparse.Namespace, train_label: str, train: jaxheli.FlightData,
-              validations: dict[str, jaxheli.FlightData], recipe: str, method: str, cv: int, options: dict
-              ) -> list[dict]:
-    """One fit (``method`` in ``recipe``, ``cv`` windows of cross-validation or none) on the training record, timed,
-    scored on every validation record."""
+              validations: dict[str, jaxheli.FlightData], recipe: str, method: str, cv: int, options: dict,
+              seed: int) -> list[dict]:
+    """One fit (``method`` in ``recipe``, ``cv`` windows of cross-validation or none, ``seed`` and ``args.trials``
+    trials) on the training record, timed, scored on every validation record."""
     t0 = time.perf_counter()
-    res = identify(train, method=method, seed=args.seed, cv_windows=cv or None, **options,
+    res = identify(train, method=method, seed=seed, trials=args.trials, cv_windows=cv or None, **options,
                    **_search(method, args.iterations))
     seconds = time.perf_counter() - t0
     chosen = (res.polish or {}).get("cross_validation")
     name = method if not cv else f"{method}, cv {cv}: {chosen['final_s']:.3g} s x {chosen['rounds']}"
     name += f", prior {options['prior']} {options['prior_sd']:g} %" if "prior" in options else ""
-    found = {"train": train_label, "recipe": recipe, "method": name, "seconds": seconds, "iterations":
+    found = {"train": train_label, "recipe": recipe, "method": name, "seed": seed, "trials": args.trials,
+             "seconds": seconds, "iterations":
              args.iterations if uses(method, "iterations") else None, "cross_validation": chosen,
              "fixed": sorted(res.fixed or {}), "unstable_modes": unstable_modes(res.params)}
-    print(f"{train_label} {recipe} {name}: {seconds:.0f} s", flush=True)
+    print(f"{train_label} {recipe} {name} seed {seed}: {seconds:.0f} s", flush=True)
     samples = {label: _sample(train_label, label) for label in validations}
     return [{**found, "validate": label, "held_out": samples[label] == "held out", "sample": samples[label],
              **_real_scores(res.params, validation, options.get("hold", "zoh"))}
@@ -250,24 +257,54 @@ def _metrics(block: dict) -> dict:
 
 
 def _real_table(rows: list[dict], args: argparse.Namespace) -> str:
-    lines = [f"# Real flights ({_machine()}; {args.iterations} generations, seed {args.seed})", "",
+    lines = [f"# Real flights ({_machine()}; {args.iterations} generations, {_seeds(args)})", "",
              "`*`: the validation record overlaps the training record (in-sample). Channels p q phi theta. "
              "Unstable modes: rows.json and the Benchmarks page (docs/gen_benchmarks.py's recipes).", ""]
     cols = (("pearson", "r", ".3f"), ("fit_percent", "fit", ".1f"), ("tic", "TIC", ".3f"))
     for title, key in (
             (f"{RUN_S:g}-s runs, each from its least-squares start with a per-channel bias (`jaxheli verify`)", "runs"),
             ("One run over the window: Pearson from rest | fit % and TIC, initial state estimated", None)):
-        lines += [f"## {title}", "", "| train | recipe | method | validate | sample | s | " + " | ".join(
+        lines += [f"## {title}", "", "| train | recipe | method | seed | validate | sample | s | " + " | ".join(
             f"{short} {c}" for _, short, _ in cols for c in REAL_CHANNELS) + " |",
-            "|---" * (6 + 3 * len(REAL_CHANNELS)) + "|"]
+            "|---" * (7 + 3 * len(REAL_CHANNELS)) + "|"]
         for r in rows:
             blocks = [r[key]] * 3 if key else [r["zero"], r["estimated"], r["estimated"]]
             cells = [f"{block[metric][c]:{fmt}}" for block, (metric, _, fmt) in zip(blocks, cols) for c in REAL_CHANNELS]
             mark = "" if r["held_out"] else " *"
-            lines.append(f"| {r['train']} | {r.get('recipe', '-')} | {r['method']} | {r['validate']}{mark} | "
+            lines.append(f"| {r['train']} | {r.get('recipe', '-')} | {r['method']} | {r.get('seed', '-')} | "
+                         f"{r['validate']}{mark} | "
                          f"{r.get('sample', '-')} | {r['seconds']:.0f} | " + " | ".join(cells) + " |")
         lines.append("")
     return "\n".join(lines)
+
+
+def _spread_table(rows: list[dict]) -> str:
+    """Over the seeds of each training record, recipe, method and validation record: the median and the range of
+    Pearson and fit % per channel (5-s runs); empty when every such fit ran with one seed."""
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        if r["recipe"] != "-":
+            groups.setdefault((r["train"], r["recipe"], r["method"], r["validate"]), []).append(r)
+    if all(len(g) < 2 for g in groups.values()):
+        return ""
+    lines = ["## Over seeds: median [lowest, highest], 5-s runs", "",
+             "| train | recipe | method | validate | sample | seeds | "
+             + " | ".join(f"{short} {c}" for short in ("r", "fit") for c in REAL_CHANNELS) + " |",
+             "|---" * (6 + 2 * len(REAL_CHANNELS)) + "|"]
+    for (train, recipe, method, validate), group in groups.items():
+        cells = []
+        for metric, fmt in (("pearson", ".3f"), ("fit_percent", ".1f")):
+            for c in REAL_CHANNELS:
+                values = [r["runs"][metric][c] for r in group]
+                cells.append(f"{np.median(values):{fmt}} [{min(values):{fmt}}, {max(values):{fmt}}]")
+        lines.append(f"| {train} | {recipe} | {method} | {validate} | {group[0]['sample']} | {len(group)} | "
+                     + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _seeds(args: argparse.Namespace) -> str:
+    """The seeds and trials of a run, for a table's title."""
+    return f"seeds {', '.join(map(str, args.seeds))}, {args.trials} trial(s) each"
 
 
 def _machine() -> str:
@@ -290,7 +327,10 @@ def main() -> None:
     parser.add_argument("--noises", nargs="+", type=float, default=[1.0, 3.0],
                         help="sensor-noise levels, multiples of the default (synthetic)")
     parser.add_argument("--iterations", type=int, default=100, help="IWO / GA generations")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0],
+                        help="random seeds, one fit of each method per seed (default 0); real: the tables add each "
+                             "score's median and range over the seeds")
+    parser.add_argument("--trials", type=int, default=1, help="identify's trials per fit, the best kept (default 1)")
     parser.add_argument("--cv-windows", nargs="+", type=int, default=[4, 0],
                         help="real: windows of the polish's leave-one-window-out cross-validation, one run per value "
                              "(0: the polish's full schedule; default 4 0, both side by side)")

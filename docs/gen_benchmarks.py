@@ -279,9 +279,12 @@ def render_recipes(rec: dict) -> str:
     rows = rec["output"]["rows"]
     channels = [c for c in RECIPE_CHANNELS if rows and c in rows[0]["runs"]["pearson"]]
     metrics = (("pearson", "r", ".3f"), ("fit_percent", "fit %", ".1f"), ("tic", "TIC", ".3f"))
-    header = (["train", "recipe", "validate", "sample"] + [f"{short} {c}" for _, short, _ in metrics for c in channels]
+    seeds = len(rec["output"].get("settings", {}).get("seeds", [])) > 1
+    header = (["train", "recipe", "validate", "sample"] + (["seed"] if seeds else [])
+              + [f"{short} {c}" for _, short, _ in metrics for c in channels]
               + ["unstable modes (1/s)", "fixed", "fit s"])
     body = [[r["train"], r["method"] if r["recipe"] == "-" else r["recipe"], r["validate"], f"**{r['sample']}**"]
+            + ([str(r.get("seed", "-"))] if seeds else [])
             + [f"{r['runs'][m][c]:{fmt}}" for m, _, fmt in metrics for c in channels]
             + [_modes_cell(r["unstable_modes"])]
             + (["-", "-"] if r["recipe"] == "-" else [str(len(r.get("fixed") or [])), f"{r['seconds']:.0f}"])

@@ -96,6 +96,25 @@ def test_identification_recipes_map_to_identify_options():
             recipes.recipe_options(bad, None, 50.0)
 
 
+def test_identification_spread_over_seeds():
+    """benchmarks/identification.py's table over seeds: each held-out score's median and range over the seeds of one
+    training record, recipe, method and validation record, numpy's median of the rows; nothing with one seed."""
+    recipes = _script("identification")
+
+    def row(seed, shift):
+        scores = {m: {c: shift + i for i, c in enumerate(recipes.REAL_CHANNELS)} for m in ("pearson", "fit_percent")}
+        return {"train": "A", "recipe": "default", "method": "m", "validate": "C", "sample": "held out",
+                "seed": seed, "runs": scores}
+
+    assert recipes._spread_table([row(0, 0.1)]) == ""
+    table = recipes._spread_table([row(0, 0.1), row(1, 0.5), row(2, 0.2)])
+    line = next(x for x in table.splitlines() if x.startswith("| A |"))
+    cells = [c.strip() for c in line.strip("|").split("|")]
+    assert cells[:6] == ["A", "default", "m", "C", "held out", "3"]
+    assert cells[6] == f"{np.median([0.1, 0.5, 0.2]):.3f} [0.100, 0.500]"
+    assert cells[6 + len(recipes.REAL_CHANNELS)] == "0.2 [0.1, 0.5]"
+
+
 @pytest.mark.parametrize("sizes", ["FULL", "TINY"])
 def test_gpu_script_steps_are_valid_commands(sizes):
     """Every command benchmarks/gpu.py runs parses with jaxheli's own parser (a typo would cost a GPU run)."""
