@@ -12,6 +12,7 @@ from jaxheli.data.flight import FlightData
 from jaxheli.model import LOWER, N_PARAMS, PARAM_NAMES, TABLE2, UPPER, WIDE_LOWER, WIDE_UPPER
 from jaxheli.cli.identify import print_fixed
 from jaxheli.identify import identify
+from jaxheli.optim.output_error import output_error_problem
 from jaxheli.optim.pem import pem
 from jaxheli.optim.prior import FLOOR_FRACTION, Prior
 from jaxheli.optim.structure import determine_structure, fixed_value, select_fixed
@@ -117,6 +118,27 @@ def test_nothing_is_fixed_when_every_stick_moves():
     found = determine_structure(flight, TABLE2, segment=4.0, lower=box.lower, upper=box.upper, max_steps=30)
     assert found.fixed == () and found.rounds == ()
     np.testing.assert_array_equal(found.theta, TABLE2)
+
+
+def test_output_error_judges_every_try_on_the_free_fits_runs(monkeypatch):
+    """Output error shortens the runs of an unstable model, so a re-fit judged on its own runs could lower its sum
+    of squares by turning unstable: every sum the test compares is over the runs the free fit chooses."""
+    import jaxheli.optim.structure as structure
+
+    chosen_at = []
+
+    def spy(problem, theta, *args, **kwargs):
+        chosen_at.append(np.asarray(theta).copy())
+        return output_error_problem(problem, theta, *args, **kwargs)
+
+    monkeypatch.setattr(structure, "output_error_problem", spy)
+    box = _box()
+    start = TABLE2.copy()
+    start[PARAM_NAMES.index("Lb")] *= 1.01
+    found = determine_structure(_flight(), start, local_fit="output-error", lower=box.lower, upper=box.upper,
+                                max_steps=5, rounds=1)
+    assert found.rounds and not np.array_equal(found.theta, start)
+    assert len(chosen_at) == 1 + len(found.rounds) and all(np.array_equal(t, start) for t in chosen_at)
 
 
 def test_a_fix_that_raises_the_sum_of_squares_is_refused():

@@ -17,7 +17,8 @@ Each fixed parameter is held at the prior model's value when a prior is given, e
 term the flight cannot see is dropped), else at the nearest bound; the re-fit pins it there (``lower = upper``,
 the box's own mechanism) and runs the same local fit as the identification (PEM, or the polish's output-error least
 squares), from the fitted point. A round's fixes stand only when the re-fit's sum of squares rises by no more than an
-extra-sum-of-squares test allows (:data:`LEVEL`); otherwise the round tries fewer (the unresolved ones with the
+extra-sum-of-squares test allows (:data:`LEVEL`), every sum over the runs of the free fit (output error shortens
+the runs of an unstable model, so a re-fit judged on its own runs could lower its sum by turning unstable); otherwise the round tries fewer (the unresolved ones with the
 resolved one of largest relative bound, then the unresolved ones alone), and ends the determination when none
 passes. Rounds go on until nothing more is fixed or after :data:`MAX_ROUNDS`.
 
@@ -234,7 +235,7 @@ def determine_structure(
     start = np.asarray(theta, dtype=np.float64)
     lower, upper = (np.asarray(v, np.float64).copy() for v in (problem.bounds.lower, problem.bounds.upper))
     current, fixed, history = start, [], []
-    unc = _errors(problem, current, local_fit)
+    unc = _errors(problem, current, local_fit, start)
     rss_start = unc.rss
     for k in range(1, max_rounds + 1):
         choices = select_fixed(unc, max_relative_se=max_relative_se, max_correlation=max_correlation)
@@ -248,7 +249,7 @@ def determine_structure(
                 lo[c.index] = hi[c.index] = value
             pinned = problem.variant(lower=tuple(lo), upper=tuple(hi))
             res = _refit(pinned, np.clip(current, lo, hi), local_fit, prior, max_steps, rounds)
-            after = _errors(pinned, res.theta, local_fit)
+            after = _errors(pinned, res.theta, local_fit, start)
             rise, limit = (after.rss - unc.rss) / unc.sigma2, float(scipy.stats.chi2.ppf(1.0 - level, len(tried)))
             ok = bool(np.isfinite(after.rss) and rise <= limit)
             history.append({"round": k, "fixed": [PARAM_NAMES[c.index] for c in tried], "rss_start": unc.rss,
@@ -291,7 +292,8 @@ def _refit(
     return output_error(pinned, start, rounds=rounds, max_steps=max_steps, prior=prior)
 
 
-def _errors(problem: Problem | Records, theta: np.ndarray, local_fit: LocalFit) -> Uncertainty:
-    """Standard errors at ``theta`` on the local fit's residuals (output error: its restarts at ``theta``)."""
-    scored = output_error_problem(problem, theta) if local_fit == "output-error" else problem
+def _errors(problem: Problem | Records, theta: np.ndarray, local_fit: LocalFit, runs_at: np.ndarray) -> Uncertainty:
+    """Standard errors at ``theta`` on the local fit's residuals (output error: in the runs it chooses at
+    ``runs_at``, the free fit, so that every try's sum of squares is over the same runs)."""
+    scored = output_error_problem(problem, runs_at) if local_fit == "output-error" else problem
     return standard_errors(scored, theta, nonfinite="unresolved")
