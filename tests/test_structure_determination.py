@@ -12,7 +12,7 @@ from jaxheli.data.flight import FlightData
 from jaxheli.model import LOWER, N_PARAMS, PARAM_NAMES, TABLE2, UPPER, WIDE_LOWER, WIDE_UPPER
 from jaxheli.cli.identify import print_fixed
 from jaxheli.identify import identify
-from jaxheli.optim.output_error import output_error_problem
+from jaxheli.optim.output_error import output_error, output_error_problem
 from jaxheli.optim.pem import pem
 from jaxheli.optim.prior import FLOOR_FRACTION, Prior
 from jaxheli.optim.structure import determine_structure, fixed_value, select_fixed
@@ -139,6 +139,26 @@ def test_output_error_judges_every_try_on_the_free_fits_runs(monkeypatch):
                                 max_steps=5, rounds=1)
     assert found.rounds and not np.array_equal(found.theta, start)
     assert len(chosen_at) == 1 + len(found.rounds) and all(np.array_equal(t, start) for t in chosen_at)
+
+
+def test_output_error_refits_from_the_optimum_in_one_round_without_the_ladder(monkeypatch):
+    """The polish's re-fit (output error) starts at an optimum: one round at the runs that point chooses, not the
+    ladder of 5-s and 20-s runs a population optimiser's start needs; the still pedal is fixed as with PEM."""
+    import jaxheli.optim.structure as structure
+
+    refits = []
+
+    def spy(*args, **kwargs):
+        res = output_error(*args, **kwargs)
+        refits.append(res.settings["rounds"])
+        return res
+
+    monkeypatch.setattr(structure, "output_error", spy)
+    box = _box()
+    found = determine_structure(_flight(), TABLE2, local_fit="output-error", lower=box.lower, upper=box.upper,
+                                max_steps=20)
+    assert [f.name for f in found.fixed] == ["Nped"] and refits
+    assert all(len(history) == 1 and not history[0]["ladder"] for history in refits)
 
 
 def test_a_fix_that_raises_the_sum_of_squares_is_refused():

@@ -16,9 +16,11 @@ free parameters the record determines. Each round fixes
 Each fixed parameter is held at the prior model's value when a prior is given, else at 0 when the box holds 0 (a
 term the flight cannot see is dropped), else at the nearest bound; the re-fit pins it there (``lower = upper``,
 the box's own mechanism) and runs the same local fit as the identification (PEM, or the polish's output-error least
-squares), from the fitted point. A round's fixes stand only when the re-fit's sum of squares rises by no more than an
-extra-sum-of-squares test allows (:data:`LEVEL`), every sum over the runs of the free fit (output error shortens
-the runs of an unstable model, so a re-fit judged on its own runs could lower its sum by turning unstable); otherwise the round tries fewer (the unresolved ones with the
+squares), from the fitted point: output error in one round, without the ladder of short runs a population
+optimiser's rough start needs (the same compiled solver as the polish's). A round's fixes stand only when the
+re-fit's sum of squares rises by no more than an extra-sum-of-squares test allows (:data:`LEVEL`), every sum over
+the runs of the free fit (output error shortens the runs of an unstable model, so a re-fit judged on its own runs
+could lower its sum by turning unstable); otherwise the round tries fewer (the unresolved ones with the
 resolved one of largest relative bound, then the unresolved ones alone), and ends the determination when none
 passes. Rounds go on until nothing more is fixed or after :data:`MAX_ROUNDS`.
 
@@ -204,7 +206,7 @@ def determine_structure(
     max_rounds: int = MAX_ROUNDS,
     level: float = LEVEL,
     max_steps: int = 100,
-    rounds: int = 4,
+    rounds: int = 1,
     **settings: Any,
 ) -> StructureResult:
     """Fix the parameters ``data`` cannot determine at the fitted ``theta[40]`` and re-fit, until nothing more is
@@ -216,7 +218,7 @@ def determine_structure(
         theta: the fitted parameters (an optimum of ``local_fit``).
         local_fit: ``"pem"`` (:func:`~jaxheli.optim.pem.pem` on ``data`` as it is; standard errors on the same
             predictor) or ``"output-error"`` (the polish's fit, :func:`~jaxheli.optim.output_error.output_error`,
-            ``rounds`` rounds; standard errors with its restarts at the current point).
+            ``rounds`` rounds, default 1: a re-fit from an optimum).
         max_relative_se, max_correlation: the thresholds (:data:`MAX_RELATIVE_SE`, :data:`MAX_CORRELATION`).
         prior: the values fixed parameters take (and a prior term in every re-fit,
             :class:`~jaxheli.optim.prior.Prior`); ``None``: 0, or the nearest bound where the box excludes 0.

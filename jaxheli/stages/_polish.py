@@ -124,8 +124,7 @@ class Polish(Stage):
         if self.objective == "pearson":
             raise ValueError("Structure: needs a least-squares fit to repeat: PEM, or a polish on 'output-error' or "
                              "'pem' (got the polish on 'pearson')")
-        return {"local_fit": self.objective, "max_steps": self.steps, "rounds": self.rounds or ROUNDS,
-                "prior": belief(self.prior, self.prior_sd)}
+        return {"local_fit": self.objective, "max_steps": self.steps, "prior": belief(self.prior, self.prior_sd)}
 
     def settings(self) -> dict[str, Any]:
         return {"polish_objective": self.objective, "polish_steps": self.steps, "polish_rounds": self.rounds or ROUNDS,
