@@ -61,7 +61,8 @@ def _flight(seed: int, steps: list[float], holds: list[str]) -> dict:
     scored = make_problem(flight).variant(segment=5.0, x0="measured")
     full, fits, rows = {}, {}, []
     for step, hold in [(flight.dt, h) for h in holds] + [(s, h) for s in steps for h in holds]:
-        fit = identify(flight if step == flight.dt else resample(flight, step), method="pem", start=start, hold=hold)
+        fit = identify(flight if step == flight.dt else resample(flight, step), method="pem", start=start, hold=hold,
+                       fit_dt="full")
         full.setdefault(hold, fit)
         fits[(step, hold)] = fit
         fitted = scores(fit.params, scored.variant(hold="zoh"))["fit_percent"]

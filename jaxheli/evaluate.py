@@ -14,6 +14,7 @@ from .cost import metrics, search_cost
 from .data.flight import FlightData
 from .model import G_SI, N_PARAMS, N_STATES, PARAM_NAMES, TABLE2, params_array
 from .problem import Problem, Records, as_problem, make_problem, parts
+from .sim.discretize import Hold
 from .sim.initial_state import Start, estimate_start, estimate_x0
 from .sim.simulate import Simulator
 
@@ -30,13 +31,7 @@ def resolve_params(spec: str | Path | np.ndarray | dict) -> Float[np.ndarray, "4
     elif str(spec).lower() in NAMED_MODELS:
         theta = NAMED_MODELS[str(spec).lower()].copy()
     else:
-        path = Path(spec)
-        if not path.is_file():
-            raise FileNotFoundError(f"{path}: no such model file (or a named model: {sorted(NAMED_MODELS)})")
-        try:
-            content = json.loads(path.read_text())
-        except json.JSONDecodeError as err:
-            raise ValueError(f"{path}: not a JSON model file ({err})") from None
+        path, content = Path(spec), _model_file(spec)
         values = content.get("parameters", content) if isinstance(content, dict) else None
         if not isinstance(values, dict):
             raise ValueError(f"{path}: field 'parameters': expected a {{name: value}} object of the 40 parameters")
@@ -47,6 +42,30 @@ def resolve_params(spec: str | Path | np.ndarray | dict) -> Float[np.ndarray, "4
     if theta.shape != (N_PARAMS,) or not np.isfinite(theta).all():
         raise ValueError(f"model parameters must be 40 finite numbers ({', '.join(PARAM_NAMES[:3])}, ...)")
     return theta
+
+
+def recorded_hold(spec: str | Path | np.ndarray | dict) -> Hold | None:
+    """The input hold an identification result (a ``result.json`` or its dict) was fitted and scored with,
+    ``None`` for anything else (a named model, bare parameters, an array)."""
+    if isinstance(spec, dict):
+        content = spec
+    elif isinstance(spec, (str, Path)) and str(spec).lower() not in NAMED_MODELS:
+        content = _model_file(spec)
+    else:
+        return None
+    hold = content.get("settings", {}).get("hold") if isinstance(content, dict) else None
+    return hold if hold in ("zoh", "foh") else None
+
+
+def _model_file(spec: str | Path) -> object:
+    """The JSON content of a model file, with a one-line error naming the file when it is missing or not JSON."""
+    path = Path(spec)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such model file (or a named model: {sorted(NAMED_MODELS)})")
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as err:
+        raise ValueError(f"{path}: not a JSON model file ({err})") from None
 
 
 def evaluate(
@@ -68,12 +87,16 @@ def evaluate(
         outputs: channels to score (default :func:`~jaxheli.data.flight.default_outputs`).
         x0: ``"estimate"`` (least-squares initial state, as MATLAB ``compare``), ``"zero"`` (the paper),
             ``"measured"``, or a 13-vector.
-        options: simulation settings (:class:`~jaxheli.problem.Settings` fields: ``hold``, ``g``, ``segment``).
+        options: simulation settings (:class:`~jaxheli.problem.Settings` fields: ``hold``, ``g``, ``segment``);
+            scoring flights, the hold defaults to the one a result's ``params`` were fitted with
+            (:func:`recorded_hold`).
 
     Returns ``{"pearson": {ch: rho}, "tic": ..., "rmse": ..., "fit_percent": ..., "cost": C,
     "simulation": settings}``.
     """
     theta = resolve_params(params)
+    if "hold" not in options and not isinstance(data, (Problem, Records)) and recorded_hold(params) is not None:
+        options = {**options, "hold": recorded_hold(params)}
     problem = as_problem(data, outputs=outputs, **options)
     records = parts(problem)
     sims = [started_simulator(part, theta, x0) for part in records]

@@ -20,7 +20,7 @@ import scipy.stats
 from ._progress import stage
 from ._types import Float
 from .data.flight import FlightData, constant_outputs, default_outputs
-from .data.preprocess import bandwidth_step, resample
+from .data.preprocess import bandwidth_step, input_cutoff, resample
 from .evaluate import evaluate
 from .model import G_SI, LOWER, PARAM_NAMES, UPPER
 from .optim.frequency_fit import FrequencyFitResult, cifer_report
@@ -112,10 +112,13 @@ def intervals95(trial_params: Float[np.ndarray, "K 40"]) -> dict[str, tuple[floa
     return {n: (float(m - h), float(m + h)) for n, m, h in zip(PARAM_NAMES, mean, half)}
 
 
-PROBLEM_DEFAULTS: dict[str, Any] = {"outputs": None, "segment": None, "hold": "zoh", "g": G_SI, "lower": LOWER,
+PROBLEM_DEFAULTS: dict[str, Any] = {"outputs": None, "segment": None, "hold": "auto", "g": G_SI, "lower": LOWER,
                                     "upper": UPPER, "cost": "pearson", "search_precision": "float32"}
 """The settings of the problem :func:`identify` builds from flights, where not given: the flight's measured channels
-without a, b; one run from rest (``segment``, s); zero-order hold; gravity, m/s^2; the authors' box; the paper's
+without a, b; one run from rest (``segment``, s); the input hold ``"auto"``, first-order where every training
+flight's sticks were low-passed (:func:`~jaxheli.data.preprocess.lowpass`: smooth between samples, MATLAB ``lsim``'s
+choice for smooth inputs), zero-order otherwise (``"zoh"`` / ``"foh"`` to choose); gravity, m/s^2; the authors'
+box; the paper's
 Pearson cost (Eq. 7) for the search (``"output-error"``: :func:`jaxheli.cost.output_error_cost`), scored in float32
 (several times faster, its costs within 1e-3 of float64's, ``tests/test_blocked.py``; every other stage and metric
 run in the session's precision)."""
@@ -133,7 +136,7 @@ def identify(
     trials: int = 1,
     seed: int = 0,
     truth: Float[np.ndarray, "40"] | None = None,
-    fit_dt: float | str | None = None,
+    fit_dt: float | str | None = "auto",
     **options: Any,
 ) -> IdentificationResult:
     """Identify the 40 hover-model parameters from a training record by a chain of stages (:mod:`jaxheli.stages`).
@@ -152,8 +155,8 @@ def identify(
             no unmodelled effect).
         fit_dt: the step (s) the stages fit each flight at, resampled (:func:`~jaxheli.data.preprocess.resample`,
             which does not filter: the flight must be low-passed below its Nyquist rate); ``"auto"``: a low-passed
-            flight's :func:`~jaxheli.data.preprocess.bandwidth_step`, the others at their own step; ``None`` or
-            ``"full"``: every flight at its own step. The standard errors and every score use the flights at their
+            flight's :func:`~jaxheli.data.preprocess.bandwidth_step`, the others (and a ``Problem``) at their own
+            step (the default); ``None`` or ``"full"``: every flight at its own step. The standard errors and every score use the flights at their
             own step (a structure determination's standard errors excepted: they are its fit's).
         options: the problem's settings (:data:`PROBLEM_DEFAULTS`) and, for a named method, its stages' options
             (:data:`~jaxheli.stages.KEYWORDS`: ``iterations``, ``polish_steps``, ``structure``, ...); one that no
@@ -170,6 +173,7 @@ def identify(
         problem = fit_problem = data
     else:
         chosen = {**PROBLEM_DEFAULTS, **given}
+        chosen["hold"] = _hold(data, chosen["hold"])
         precision = chosen.pop("search_precision")
         problem = as_problem(data, None, precision=precision, **chosen)
         fit_problem = problem if fit_data is data else as_problem(fit_data, None, precision=precision, **chosen)
@@ -240,7 +244,7 @@ def _at_fit_step(
 ) -> tuple[FlightData | Sequence[FlightData] | Problem | Records, list[float] | None]:
     """The training record the stages fit (``data`` itself unless a flight's fitting step differs from its own) and
     each flight's fitting step, s (``None``: every flight at its own); see :func:`identify`'s ``fit_dt``."""
-    if fit_dt is None or fit_dt == "full":
+    if fit_dt is None or fit_dt == "full" or (fit_dt == "auto" and isinstance(data, (Problem, Records))):
         return data, None
     if isinstance(data, (Problem, Records)):
         raise ValueError(f"identify: fit_dt={fit_dt!r} needs flights, got a {type(data).__name__} (build it from the "
@@ -288,6 +292,14 @@ def _frequency_block(fits: list[FrequencyFitResult], params: Float[np.ndarray, "
 
 _SETTING_OF = {"search_precision": "precision"}
 """``identify``'s option names that differ from the :class:`~jaxheli.problem.Settings` field they set."""
+
+
+def _hold(data: FlightData | Sequence[FlightData], hold: str) -> str:
+    """The input hold of :data:`PROBLEM_DEFAULTS`'s ``"auto"`` for these flights (see there), or ``hold`` as given."""
+    if hold != "auto":
+        return hold
+    flights = [data] if isinstance(data, FlightData) else list(data)
+    return "foh" if all(input_cutoff(f) is not None for f in flights) else "zoh"
 
 
 def _refuse_conflicts(settings: Any, given: dict[str, Any]) -> None:

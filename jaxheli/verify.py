@@ -35,7 +35,7 @@ from ._progress import stage
 from ._types import Float
 from .cost import metrics
 from .data.flight import FlightData, constant_outputs, default_outputs
-from .evaluate import biased_start_outputs, resolve_params
+from .evaluate import biased_start_outputs, recorded_hold, resolve_params
 from .model import G_SI
 from .modes import Mode, fastest_doubling, modes
 from .plots import plot_time_domain
@@ -107,15 +107,17 @@ class Verification:
 
 def verify(
     params: str | Path | np.ndarray | dict, flight: FlightData, *, run_length: float | None = 5.0,
-    outputs: tuple[str, ...] | None = None, hold: Hold = "zoh", g: float = G_SI,
+    outputs: tuple[str, ...] | None = None, hold: Hold | None = None, g: float = G_SI,
 ) -> Verification:
     """Verify ``params`` (anything :func:`jaxheli.evaluate.resolve_params` takes) on ``flight`` in runs of
     ``run_length`` s (``None``: one run over the whole window; a window shorter than a run is one run).
 
     ``outputs``: the scored channels (default :func:`~jaxheli.data.flight.default_outputs`); ``hold``, ``g``: the
-    simulation's. Samples left after the last whole run are left out (said in ``notes``).
+    simulation's (``hold`` by default the one a result was fitted with, :func:`~jaxheli.evaluate.recorded_hold`,
+    else zero-order). Samples left after the last whole run are left out (said in ``notes``).
     """
     theta = resolve_params(params)
+    hold = hold or recorded_hold(params) or "zoh"
     spans, notes = _spans(flight, run_length)
     asked = tuple(outputs or default_outputs(flight))
     flat = sorted({c for a, b in spans for c in constant_outputs(_cut(flight, a, b).select(asked))}, key=asked.index)

@@ -159,18 +159,32 @@ def read_flight(spec: str, args: argparse.Namespace) -> FlightData:
     return flight
 
 
-def add_sim_options(p: Options) -> None:
-    """Add ``--outputs``, ``--hold``, ``--g`` and ``--segment`` to the parser of a command that simulates."""
+_HOLD_HELP = {
+    "zoh": (("zoh", "foh"), "zoh", "input hold between samples (default zoh)"),
+    "auto": (("auto", "zoh", "foh"), "auto", "input hold between samples: auto (default: foh where the training "
+                                             "flights' sticks were low-passed, by jaxheli prepare --lowpass, zoh "
+                                             "otherwise), zoh or foh"),
+    "model": (("zoh", "foh"), None, "input hold between samples (default: the one a result.json was fitted with, "
+                                    "else zoh)"),
+}
+
+
+def add_sim_options(p: Options, hold: str = "zoh") -> None:
+    """Add ``--outputs``, ``--hold``, ``--g`` and ``--segment`` to the parser of a command that simulates; ``hold``
+    names ``--hold``'s default: ``"zoh"``, ``"auto"`` (:func:`jaxheli.identify`'s choice by the flights) or
+    ``"model"`` (the model file's own, :func:`jaxheli.evaluate.recorded_hold`)."""
+    choices, default, text = _HOLD_HELP[hold]
     p.add_argument("--outputs", default=None, help="comma-separated channels, e.g. p,q,phi,theta (default: all measured)")
-    p.add_argument("--hold", choices=("zoh", "foh"), default="zoh", help="input hold between samples (default zoh)")
+    p.add_argument("--hold", choices=choices, default=default, help=text)
     p.add_argument("--g", type=float, default=9.81, help="gravity, m/s^2 (default 9.81)")
     p.add_argument("--segment", type=float, default=None,
                    help="restart from measured states every SECONDS (multiple shooting); default: one long run")
 
 
 def sim_options(args: argparse.Namespace) -> dict:
-    """``hold``, ``g`` and ``segment`` as keyword arguments of the simulator (:func:`jaxheli.make_simulator`)."""
-    return {"hold": args.hold, "g": args.g, "segment": args.segment}
+    """``hold`` (left out when not given and the model's own applies), ``g`` and ``segment`` as keyword arguments of
+    the simulator (:func:`jaxheli.make_simulator`)."""
+    return {"g": args.g, "segment": args.segment} | ({} if args.hold is None else {"hold": args.hold})
 
 
 def fit_step(text: str) -> float | str:

@@ -94,11 +94,11 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     model.add_argument("--prior-sd", type=float, default=None, metavar="PCT",
                        help=f"the prior's standard deviation, %% of each value, floored at 1 %% of the parameter's "
                             f"physical range (default {PRIOR_SD:g})")
-    model.add_argument("--fit-dt", type=fit_step, default=None, metavar="S",
-                       help="step the fit runs at, s: 'auto' (a flight low-passed by jaxheli prepare --lowpass at a "
-                            "step of about 1 / (8 x its cut-off), the others at their own), 'full' (default: every "
-                            "flight at its own step) or seconds (the flight must be low-passed below that step's "
-                            "Nyquist rate); scores and standard errors use each flight's own step")
+    model.add_argument("--fit-dt", type=fit_step, default="auto", metavar="S",
+                       help="step the fit runs at, s: 'auto' (default: a flight low-passed by jaxheli prepare "
+                            "--lowpass at a step of about 1 / (8 x its cut-off), the others at their own), 'full' "
+                            "(every flight at its own step) or seconds (the flight must be low-passed below that "
+                            "step's Nyquist rate); scores and standard errors use each flight's own step")
 
     freq = p.add_argument_group(f"the frequency-domain fit (methods {used_by('freq_options')})")
     freq.add_argument("--freq-starts", type=int, default=None, metavar="K",
@@ -112,7 +112,7 @@ def add_identify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     freq.add_argument("--freq-band", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                       help="fitted band, Hz (default 0.1 Hz to a third of Nyquist, at most 10 Hz)")
 
-    add_sim_options(p.add_argument_group("simulation"))
+    add_sim_options(p.add_argument_group("simulation"), hold="auto")
     add_load_options(p.add_argument_group("reading logs (.px4log .bin .ulg) and checking flights"))
     p.set_defaults(func=_cmd_identify)
     return p
@@ -127,7 +127,7 @@ def add_evaluate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
                    help="initial state: least-squares estimate (default, as MATLAB compare), zero (the paper), measured")
     p.add_argument("--out", default=None, help="write the metrics as JSON here")
     add_load_options(p)
-    add_sim_options(p)
+    add_sim_options(p, hold="model")
     p.set_defaults(func=_cmd_evaluate)
     return p
 
@@ -214,7 +214,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         _print_metrics("validation flight, from rest (the paper)", result.validate["zero_initial_state"],
                        (truth.get("validate") or {}).get("zero_initial_state"))
         scored = tuple(c for c in result.settings["outputs"] if c in validate.output_names) or None
-        print_verification(verify(result.params, validate, outputs=scored, hold=args.hold, g=args.g), args.method)
+        print_verification(verify(result.params, validate, outputs=scored, hold=result.settings["hold"], g=args.g),
+                           args.method)
     if result.polish:
         print(_polish_line(result.polish, result.settings["cost"]))
     if result.frequency:

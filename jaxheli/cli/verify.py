@@ -20,7 +20,8 @@ def add_verify_parser(subparsers: argparse._SubParsersAction) -> argparse.Argume
                         "5 10 whole)")
     p.add_argument("--out", required=True, help="output folder (verification.json, verification.csv, a PNG per run)")
     p.add_argument("--outputs", default=None, help="comma-separated channels (default: all measured but a, b)")
-    p.add_argument("--hold", choices=("zoh", "foh"), default="zoh", help="input hold between samples (default zoh)")
+    p.add_argument("--hold", choices=("zoh", "foh"), default=None,
+                   help="input hold between samples (default: the one a result.json was fitted with, else zoh)")
     p.add_argument("--g", type=float, default=9.81, help="gravity, m/s^2 (default 9.81)")
     add_load_options(p)
     add_quiet_option(p)

@@ -124,12 +124,19 @@ def bandwidth_step(flight: FlightData, samples_per_period: int = SAMPLES_PER_PER
     ``1 / (samples_per_period f_c)``, ``f_c`` the lowest cut-off (Hz) its preprocessing applied to inputs and outputs
     (:func:`lowpass`); ``None`` when it was not low-passed so, or that multiple is 1 (flight A low-passed at 3 Hz
     and sampled at 126 Hz: 5 steps, 0.040 s)."""
+    cutoff = input_cutoff(flight)
+    if cutoff is None:
+        return None
+    multiple = int(np.floor(1.0 / (samples_per_period * cutoff * flight.dt) + 1e-9))
+    return multiple * flight.dt if multiple >= 2 else None
+
+
+def input_cutoff(flight: FlightData) -> float | None:
+    """The lowest cut-off (Hz) the record's preprocessing applied to its inputs and outputs alike (:func:`lowpass`
+    with ``include_inputs``), ``None`` when its sticks were never low-passed."""
     cutoffs = [float(s["cutoff_hz"]) for s in flight.metadata.get("preprocessing", [])
                if s.get("step") == "lowpass" and s.get("include_inputs", True)]
-    if not cutoffs:
-        return None
-    multiple = int(np.floor(1.0 / (samples_per_period * min(cutoffs) * flight.dt) + 1e-9))
-    return multiple * flight.dt if multiple >= 2 else None
+    return min(cutoffs) if cutoffs else None
 
 
 def trim(
