@@ -42,7 +42,7 @@ def test_the_polish_reports_its_own_objective_and_the_search_cost_apart():
 
 @pytest.mark.parametrize("argv, message", [
     (["identify", "--hold", "xyz"], "jaxheli identify: error: argument --hold: invalid choice: 'xyz' (choose from "
-                                    "'zoh', 'foh')"),
+                                    "'auto', 'zoh', 'foh')"),
     (["identify", "--trials", "many"], "jaxheli identify: error: argument --trials: invalid int value: 'many'"),
     (["identfy"], "jaxheli: error: argument COMMAND: invalid choice: 'identfy'"),
 ])

@@ -54,17 +54,19 @@ def _outputs(notebook, kind):
     return [o for c in notebook.cells if c.cell_type == "code" for o in c.get("outputs", []) if o.output_type == kind]
 
 
-def _zero_start_pearson(theta, flight, names):
-    """Pearson of the model simulated from rest with a zero-order hold: scipy's expm and a numpy loop."""
+def _zero_start_pearson(theta, flight, names, hold):
+    """Pearson of the model simulated from rest with the sticks held zero- or first-order (``hold``) between
+    samples: scipy's expm of the augmented matrix (input, and its slope under first-order hold) and a numpy loop."""
     A, B = (np.asarray(m) for m in build_ab(theta))
     n, m = A.shape[0], B.shape[1]
-    block = np.zeros((n + m, n + m))
-    block[:n, :n], block[:n, n:] = A, B
+    block = np.zeros((n + 2 * m, n + 2 * m))
+    block[:n, :n], block[:n, n:n + m], block[n:n + m, n + m:] = A, B, np.eye(m) / flight.dt
     phi = scipy.linalg.expm(block * flight.dt)
-    Ad, Bd = phi[:n, :n], phi[:n, n:]
+    Ad, gamma1, gamma2 = phi[:n, :n], phi[:n, n:n + m], phi[:n, n + m:]
+    B0, B1 = (gamma1, 0.0 * gamma2) if hold == "zoh" else (gamma1 - gamma2, gamma2)
     x = np.zeros((flight.n_samples, N_STATES))
     for k in range(flight.n_samples - 1):
-        x[k + 1] = Ad @ x[k] + Bd @ flight.inputs[k]
+        x[k + 1] = Ad @ x[k] + B0 @ flight.inputs[k] + B1 @ flight.inputs[k + 1]
     y = x[:, output_indices(names)]
     meas = flight.select(names).outputs
     return {c: float(np.corrcoef(y[:, j], meas[:, j])[0, 1]) for j, c in enumerate(names)}
@@ -99,7 +101,7 @@ def test_identified_model_validates_and_scores_recompute(executed):
     assert result["validate"]["pearson"] == pytest.approx(pearson, abs=1e-12)
     flight = load(out / "validate.npz")
     names = tuple(result["validate"]["zero_initial_state"]["pearson"])
-    reference = _zero_start_pearson(params_array(result["parameters"]), flight, names)
+    reference = _zero_start_pearson(params_array(result["parameters"]), flight, names, result["settings"]["hold"])
     for c in names:
         assert result["validate"]["zero_initial_state"]["pearson"][c] == pytest.approx(reference[c], abs=1e-6), c
 
