@@ -319,6 +319,24 @@ def render_long_log(rec: dict) -> str:
             + _table(header, rows))
 
 
+def render_time_forms(rec: dict) -> str:
+    """``jaxheli bench`` (its ``bench.json``'s ``time_forms``, stored with ``--keep time_forms``): the plain scan
+    against the parallel form of each recursion in time, per flight length and population, and the table chosen."""
+    out = rec["output"]
+    header = ["path", "dtype", "N", "P / tangents", "steps", "scan s", "parallel s", "parallel / scan",
+              "largest relative difference"]
+    rows = [[r["path"], r["dtype"], r["N"], r.get("P", r.get("tangents")), r["steps"], _num(r["scan_s"], 3),
+             _num(r.get("parallel_s"), 3) if "parallel_s" in r else r.get("skipped", "-"),
+             _num(r.get("parallel_over_scan"), 3) if "parallel_s" in r else "-",
+             f"{r['difference']:.1e}" if "difference" in r else "-"] for r in out["rows"]]
+    chosen = ", ".join(f"{path} {'never' if steps is None else f'from {steps} steps'}"
+                       for table in out["selection"].values() for path, steps in table.items())
+    return (f"Backend `{out['backend']}` ({out['device']}). Each row times one call of each form alternately, best "
+            "of the repeats after a compiling call; the difference is the largest between the forms' results "
+            "relative to the largest value (`jaxheli/benchmark/time_forms.py`). The table the simulator reads on "
+            f"this backend (`jaxheli/sim/forms.py`), where the parallel form takes over: {chosen}.\n\n" + _table(header, rows))
+
+
 def render_blind(rec: dict) -> str:
     """``jaxheli blind`` (its ``blind.json``'s ``summary``, stored with ``--keep summary``): per kind, top-1 over all
     trials and over the resolvable ones, the median magnitude error there and how often the base model's structure
@@ -352,7 +370,7 @@ def render_blind(rec: dict) -> str:
 
 RENDERERS = {"identify": render_identify, "verify": render_verify, "truth_forms": render_truth_forms,
              "suite_time": render_suite_time, "recipes": render_recipes, "long_log": render_long_log,
-             "blind": render_blind}
+             "blind": render_blind, "time_forms": render_time_forms}
 """How each kind of record is drawn; a new kind (e.g. ``bench.json``) needs its renderer here."""
 
 INTRO = """# Benchmarks
