@@ -26,9 +26,10 @@ in-sample ceiling there (what no model trained elsewhere is expected to exceed w
 / ``UPPER``, what ``jaxheli identify`` does) or a ``+``-join of ``physical`` (the physical box,
 :data:`jaxheli.model.WIDE_LOWER` / ``WIDE_UPPER``: ``jaxheli identify --box wide``), ``structure`` (model-structure
 determination after the fit: ``--structure``), ``prior`` (a Gaussian prior toward ``--prior``, default Table 2,
-in the local fits: ``--prior table2``) and ``bandwidth`` (the fit at the low-passed record's bandwidth step,
-:func:`jaxheli.data.preprocess.bandwidth_step`: ``--fit-dt auto``) and ``foh`` (the sticks held first-order between
-samples, in the fit and in its scores: ``--hold foh``). Every row is labelled held out or in-sample
+in the local fits: ``--prior table2``), ``full`` (every record fitted at its own step, ``--fit-dt full``, where the
+default fits a low-passed one at its bandwidth step) and ``zoh`` (the sticks held zero-order between samples, in the
+fit and in its scores, ``--hold zoh``, where the default holds a low-passed record's first-order); ``full+zoh`` is
+the default before 2026-12-03. Every row is labelled held out or in-sample
 (Table 2's: unknown, its training flight is not recorded), with the seconds of its fit and the model's unstable modes (eigenvalues of the
 continuous ``A`` with positive real part, :func:`jaxheli.modes.modes`).
 
@@ -86,7 +87,7 @@ RUN_S = 5.0
 """Verification run length, s (issue 35's measure: each run from its least-squares start with a per-channel bias)."""
 
 
-RECIPE_PARTS = ("physical", "structure", "prior", "bandwidth", "foh")
+RECIPE_PARTS = ("physical", "structure", "prior", "full", "zoh")
 """What a recipe (``--recipes``) may join with ``+``; ``default`` is none of them."""
 
 
@@ -183,10 +184,10 @@ def recipe_options(recipe: str, prior: str | None, prior_sd: float) -> dict:
         options["structure"] = True
     if "prior" in parts or prior:
         options.update(prior=prior or "table2", prior_sd=prior_sd)
-    if "bandwidth" in parts:
-        options["fit_dt"] = "auto"
-    if "foh" in parts:
-        options["hold"] = "foh"
+    if "full" in parts:
+        options["fit_dt"] = "full"
+    if "zoh" in parts:
+        options["hold"] = "zoh"
     return options
 
 
@@ -242,7 +243,7 @@ def _real_fit(args: argparse.Namespace, train_label: str, train: jaxheli.FlightD
     print(f"{train_label} {recipe} {name} seed {seed}: {seconds:.0f} s", flush=True)
     samples = {label: _sample(train_label, label) for label in validations}
     return [{**found, "validate": label, "held_out": samples[label] == "held out", "sample": samples[label],
-             **_real_scores(res.params, validation, options.get("hold", "zoh"))}
+             **_real_scores(res.params, validation, res.settings["hold"])}
             for label, validation in validations.items()]
 
 

@@ -87,11 +87,11 @@ def test_identification_recipes_map_to_identify_options():
     recipes = _script("identification")
     default = recipes.recipe_options("default", None, 50.0)
     assert set(default) == {"lower", "upper"}
-    both = recipes.recipe_options("bandwidth+foh", None, 50.0)
-    assert both["hold"] == "foh" and both["fit_dt"] == "auto" and set(both) == {"lower", "upper", "hold", "fit_dt"}
+    both = recipes.recipe_options("full+zoh", None, 50.0)
+    assert both["hold"] == "zoh" and both["fit_dt"] == "full" and set(both) == {"lower", "upper", "hold", "fit_dt"}
     assert np.array_equal(both["lower"], default["lower"])
-    assert "hold" not in recipes.recipe_options("bandwidth", None, 50.0)
-    for bad in ("fast", "foh+foh"):
+    assert "hold" not in recipes.recipe_options("full", None, 50.0)
+    for bad in ("fast", "zoh+zoh"):
         with pytest.raises(ValueError, match="recipe"):
             recipes.recipe_options(bad, None, 50.0)
 
