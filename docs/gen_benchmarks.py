@@ -334,7 +334,8 @@ def render_time_forms(rec: dict) -> str:
     return (f"Backend `{out['backend']}` ({out['device']}). Each row times one call of each form alternately, best "
             "of the repeats after a compiling call; the difference is the largest between the forms' results "
             "relative to the largest value (`jaxheli/benchmark/time_forms.py`). The table the simulator reads on "
-            f"this backend (`jaxheli/sim/forms.py`), where the parallel form takes over: {chosen}.\n\n" + _table(header, rows))
+            f"this backend (`jaxheli/sim/forms.py`), where the parallel form takes over: {chosen}.\n\n"
+            + _table(header, rows))
 
 
 def render_blind(rec: dict) -> str:

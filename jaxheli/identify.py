@@ -118,10 +118,9 @@ PROBLEM_DEFAULTS: dict[str, Any] = {"outputs": None, "segment": None, "hold": "a
 without a, b; one run from rest (``segment``, s); the input hold ``"auto"``, first-order where every training
 flight's sticks were low-passed (:func:`~jaxheli.data.preprocess.lowpass`: smooth between samples, MATLAB ``lsim``'s
 choice for smooth inputs), zero-order otherwise (``"zoh"`` / ``"foh"`` to choose); gravity, m/s^2; the authors'
-box; the paper's
-Pearson cost (Eq. 7) for the search (``"output-error"``: :func:`jaxheli.cost.output_error_cost`), scored in float32
-(several times faster, its costs within 1e-3 of float64's, ``tests/test_blocked.py``; every other stage and metric
-run in the session's precision)."""
+box; the paper's Pearson cost (Eq. 7) for the search (``"output-error"``: :func:`jaxheli.cost.output_error_cost`),
+scored in float32 (several times faster, its costs within 1e-3 of float64's, ``tests/test_blocked.py``; every other
+stage and metric run in the session's precision)."""
 
 _ABSENT: dict[str, Any] = {**Search().settings(), **PEM().settings(), **FrequencyFit().settings(),
                            **Polish().settings(), "polish_objective": None, "structure": False}
@@ -156,8 +155,9 @@ def identify(
         fit_dt: the step (s) the stages fit each flight at, resampled (:func:`~jaxheli.data.preprocess.resample`,
             which does not filter: the flight must be low-passed below its Nyquist rate); ``"auto"``: a low-passed
             flight's :func:`~jaxheli.data.preprocess.bandwidth_step`, the others (and a ``Problem``) at their own
-            step (the default); ``None`` or ``"full"``: every flight at its own step. The standard errors and every score use the flights at their
-            own step (a structure determination's standard errors excepted: they are its fit's).
+            step (the default); ``None`` or ``"full"``: every flight at its own step. The standard errors and every
+            score use the flights at their own step (a structure determination's standard errors excepted: they
+            are its fit's).
         options: the problem's settings (:data:`PROBLEM_DEFAULTS`) and, for a named method, its stages' options
             (:data:`~jaxheli.stages.KEYWORDS`: ``iterations``, ``polish_steps``, ``structure``, ...); one that no
             stage of the chain uses is a one-line ``ValueError``, and ``None`` leaves an option out.
