@@ -14,7 +14,8 @@ from jaxheli.effects import plant as augmented
 from jaxheli.effects import registry as fx
 from jaxheli.gap import ledger
 from jaxheli.benchmark.blind import (
-    BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, base_model, blind_flights, explainable, forms, markdown, resolvable,
+    BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, base_model, blind_flights, explainable,
+    explainable_beyond_structure, forms, markdown, resolvable,
     run_blind, sample_injection, scenario, summarise, summarise_bases, summarise_records, wilson_interval,
 )
 from jaxheli.benchmark.blind._pool import _process_on, _worker_cores
@@ -135,8 +136,14 @@ def test_summary_arithmetic_and_table():
     # both detectable trials' oracles shrink the gap 50 % (>= MIN_SHRINK): the form could be credited in each
     assert row["explainable_trials"] == 2 and row["top1_explainable_pct"] == 50.0
     assert not explainable({**records[0], "oracle_shrink_pct": MIN_SHRINK - 0.1}) and not explainable(records[2])
+    # no trial was ranked again beyond a structure: each explainable trial is explainable beyond it too
+    assert row["explainable_beyond_structure_trials"] == 2 and row["top1_explainable_beyond_structure_pct"] == 50.0
+    past = {**records[0], "oracle_beyond_structure_pct": MIN_SHRINK - 0.1}
+    assert explainable(past) and not explainable_beyond_structure(past)
+    assert explainable_beyond_structure({**past, "oracle_beyond_structure_pct": MIN_SHRINK})
+    assert summarise([past, *records[1:]])["kinds"]["input_delay"]["explainable_beyond_structure_trials"] == 1
     assert ("| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 10.0 % | 1 | 100 | 100 | 10.0 % | 1 | 100 | 100 "
-            "| 10.0 % | 20.0 % | 5.0 % | 85.0 | 0 | 2 | 50 |") in markdown(s)
+            "| 10.0 % | 20.0 % | 5.0 % | 85.0 | 0 | 2 | 50 | 2 | 50 |") in markdown(s)
 
 
 def test_an_earlier_runs_records_are_summarised_again_without_running(tmp_path, capsys):
@@ -306,6 +313,9 @@ def test_small_blind_run_attributes_saturation():
     assert saturation["resolvable"] == (saturation["detectable"] and saturation["detectability_train"] > 1.0)
     assert len(saturation["ranking"]) == 8 and saturation["box"] == "hull"
     assert all(e["effect"] == "control_saturation" for e in saturation["recheck"] if e["significant"])
+    # the oracle is fitted beyond the structure exactly where the effects were ranked again there
+    beyond = saturation["oracle_beyond_structure_pct"]
+    assert (beyond is None) == (not saturation["recheck"]) and (beyond is None or np.isfinite(beyond))
 
 
 def _exited(pid: int) -> bool:

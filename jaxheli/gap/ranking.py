@@ -56,7 +56,9 @@ class Staged(NamedTuple):
     ranking kept the base parameters in, the entries of the effects ranked again beyond process noise when that
     leads the ranking (``beyond_noise``, :func:`~jaxheli.gap.noise_last.beyond_noise`; empty otherwise), and the
     noise's entries ranked beyond each other filtered disturbance, by its name (``noise_beyond``,
-    :func:`~jaxheli.gap.noise_last.noise_beyond`; empty unless nothing was significant beyond the noise)."""
+    :func:`~jaxheli.gap.noise_last.noise_beyond`; empty unless nothing was significant beyond the noise), and the
+    re-check's whole ranking (``rechecked``: its fits and scores, further rows such as an oracle's included; ``None``
+    when not re-checked)."""
 
     ranked: Ranked
     refit: Refit | None
@@ -65,6 +67,7 @@ class Staged(NamedTuple):
     box: Bounds | None
     beyond_noise: tuple[Entry, ...] = ()
     noise_beyond: Mapping[str, Entry] = MappingProxyType({})
+    rechecked: Ranked | None = None
 
 
 RECHECKS: tuple[str, ...] = ("significant", "all")
@@ -91,7 +94,8 @@ def _by_structure(
     hypothesis is significant (the re-fit left the box and shrinks the gap), effects are ranked again from it, in
     those ranges (:data:`RECHECK`): under ``"all"`` every effect, significant where it is significant there, and
     only while the structure leads (:func:`structure_leads`); under ``"significant"`` the effects significant in the
-    box, each staying significant only where it is in both rankings. A real effect does not hinge on the base
+    box, each staying significant only where it is in both rankings. Rows of further candidates are fitted and
+    scored in the re-check too (no entry, no effect on the verdict). A real effect does not hinge on the base
     model's box, while one that stood in for a pinned or bounded parameter, or for the misfit of a base stuck in
     another optimum, changes with it. A re-fit that left the box without predicting the validation flight better
     says nothing against the box's ranking, and effects ranked again from it are judged from a worse base. An effect
@@ -108,17 +112,20 @@ def _by_structure(
     idle = every and not structure_leads(first.entries, hypothesis)  # an effect outshrinks the structure
     if hypothesis is None or not hypothesis.significant or not chosen or idle:
         return Staged(first, first.refit, hypothesis, (), box)
-    rows = padded_rows(owner, chosen)
+    further = list(range(len(labels), int(owner.max()) + 1))
+    rows = padded_rows(owner, chosen + further)
+    renumbered = {c: k for k, c in enumerate(chosen + further)}
     with stage(f"re-check of {', '.join(labels[c] for c in chosen)} beyond the structure, in the physical ranges"
                ) as now:
         again = ranked(train, validate, hypothesis.theta, [labels[c] for c in chosen], tuple(a[rows] for a in arrays),
-                       np.searchsorted(chosen, owner[rows]), max_steps, min_shrink,
+                       np.array([renumbered[int(c)] for c in owner[rows]]), max_steps, min_shrink,
                        theta_box(hypothesis.theta, physical_box(box)))
         both = {e.effect for e in again.entries if e.significant}
         now.outcome = f"significant in both boxes: {', '.join(sorted(both)) or 'none'}"
     entries = [dataclasses.replace(e, significant=e.effect in kept or (e.effect in both and (every or e.significant)),
                                    tied_with=tuple(t for t in e.tied_with if t in both)) for e in first.entries]
-    return Staged(first._replace(entries=entries), first.refit, hypothesis, tuple(again.entries), box)
+    return Staged(first._replace(entries=entries), first.refit, hypothesis, tuple(again.entries), box,
+                  rechecked=again)
 
 
 def staged(

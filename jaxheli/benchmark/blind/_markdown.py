@@ -19,8 +19,8 @@ def markdown(summary: dict[str, Any]) -> str:
              f"identifiable (oracle z >= {MIN_Z:g}) | top-1 % identifiable | in tie % identifiable | "
              "median magnitude error (identifiable) | training fit's (identifiable) | oracle's (identifiable) | "
              f"median shrink vs oracle % | base structure named % | explainable (oracle shrink >= {MIN_SHRINK:g} %) | "
-             "top-1 % explainable |",
-             "|" + "---|" * 23]
+             "top-1 % explainable | explainable beyond the structure | top-1 % explainable beyond the structure |",
+             "|" + "---|" * 25]
 
     def cell(value: float | None, fmt: str) -> str:
         return "-" if value is None else format(value, fmt)
@@ -38,7 +38,9 @@ def markdown(summary: dict[str, Any]) -> str:
                      f"{subsets} | {error(row.get('train_magnitude_error_median_identifiable'))}"
                      f" | {error(row.get('oracle_magnitude_error_median_identifiable'))}"
                      f" | {cell(row.get('shrink_vs_oracle_pct'), '.1f')} | {cell(row.get('structure_pct'), '.0f')}"
-                     f" | {row.get('explainable_trials', '-')} | {cell(row.get('top1_explainable_pct'), '.0f')} |")
+                     f" | {row.get('explainable_trials', '-')} | {cell(row.get('top1_explainable_pct'), '.0f')}"
+                     f" | {row.get('explainable_beyond_structure_trials', '-')}"
+                     f" | {cell(row.get('top1_explainable_beyond_structure_pct'), '.0f')} |")
     for label, pool in summary.get("forms", {}).items():
         lines.append(f"\nPooled over the {label} kinds (independent simulator): top-1 {cell(pool['top1_pct'], '.0f')} % "
                      f"of {pool['trials']} trials, {cell(pool.get('top1_resolvable_pct'), '.0f')} % of the "

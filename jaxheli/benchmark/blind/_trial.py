@@ -14,6 +14,7 @@ from ...effects import registry as fx
 from ...gap.final_fit import final_fit
 from ...gap.fit_effect import MAX_STEPS
 from ...gap.predictor import RESTART, SEGMENT, smooths
+from ...gap.candidates import Ranked
 from ...gap.ranking import named, predictor_pair, staged, structure_leads
 from ...gap.records import Entry, Final, Refit, Structure
 from ...gap.reference import theta_box
@@ -73,7 +74,7 @@ def run_trial(
     stages = staged(train_pred, validate_pred, theta, list(fx.ALL), arrays, np.r_[owner, len(fx.ALL)], max_steps,
                     min_shrink, theta_box(theta, Bounds(*BOXES[box])))
     ranking, refit, structure = stages.ranked.entries, stages.refit, stages.structure
-    scored, credited = stages.ranked.scored, stages.ranked.credited
+    scored = stages.ranked.scored
     best = named(ranking, stages.beyond_noise, stages.noise_beyond)
     final = None
     if best is not None:
@@ -86,7 +87,8 @@ def run_trial(
               "correct": top in right,
               "in_tie": top in right or (best is not None and any(k in best.tied_with for k in right)),
               "true_value": inj.value, "primary": inj.primary,
-              "oracle_shrink_pct": 100.0 * (1.0 - float(np.mean(scored.rows.gap[-1]) / np.mean(credited.gap[0]))),
+              "oracle_shrink_pct": _oracle_shrink(stages.ranked),
+              "oracle_beyond_structure_pct": None if stages.rechecked is None else _oracle_shrink(stages.rechecked),
               "oracle_evidence_z": (fx.evidence(inj.kind, outputs, oracle_z, oracle_stderr)
                                     if inj.kind != "none" else None),
               "box": box, "restart": restart, "segment_s": segment, "base": ident, "base_refit": _untheta(refit),
@@ -108,6 +110,11 @@ def run_trial(
                       shrink_pct=entry.shrink_pct,
                       oracle_estimate=oracle, oracle_magnitude_error=_relative_error(oracle, inj.value))
     return record
+
+
+def _oracle_shrink(ranking: Ranked) -> float:
+    """The oracle's held-out shrink (%) in ``ranking``: its last row against the reference it was credited by."""
+    return 100.0 * (1.0 - float(np.mean(ranking.scored.rows.gap[-1]) / np.mean(ranking.credited.gap[0])))
 
 
 def _untheta(result: Entry | Refit | Final | Structure) -> dict[str, Any]:
