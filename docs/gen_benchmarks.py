@@ -338,10 +338,20 @@ def render_time_forms(rec: dict) -> str:
             + _table(header, rows))
 
 
+def _beyond(kind: dict) -> str:
+    """A kind's trials whose oracle shrinks the gap beyond the structure too, and its top-1 % there ("-" in records
+    from before that diagnostic, or for the controls)."""
+    if "explainable_beyond_structure_trials" not in kind:
+        return "-"
+    top = kind.get("top1_explainable_beyond_structure_pct")
+    return f"{kind['explainable_beyond_structure_trials']}, {'-' if top is None else f'{top:.0f}'}"
+
+
 def render_blind(rec: dict) -> str:
     """``jaxheli blind`` (its ``blind.json``'s ``summary``, stored with ``--keep summary``): per kind, top-1 over all
-    trials and over the resolvable ones, the median magnitude error there and how often the base model's structure
-    was named; top-1 pooled by form (in family: the nearest candidate comes within the noise; other forms); the
+    trials and over the resolvable ones, the median magnitude error there, how often the base model's structure
+    was named and the trials explainable beyond it (a diagnostic: the oracle shrinks the gap there too); top-1
+    pooled by form (in family: the nearest candidate comes within the noise; other forms); the
     controls that named an effect."""
     from jaxheli.benchmark.truth import IN_FAMILY
 
@@ -351,8 +361,8 @@ def render_blind(rec: dict) -> str:
     err = lambda v: "-" if v is None or isinstance(v, str) else f"{100 * v:.0f} %"
     rows = [[f"`{kind}`", "control" if kind == "none" else ("in family" if kind in IN_FAMILY else "other forms"),
              k["trials"], pct(k.get("top1_pct")), k.get("resolvable_trials", "-"), pct(k.get("top1_resolvable_pct")),
-             err(k.get("magnitude_error_median_resolvable")), pct(k.get("structure_pct"))]
-            for kind, k in out["kinds"].items()]
+             err(k.get("magnitude_error_median_resolvable")), pct(k.get("structure_pct")),
+             _beyond(k)] for kind, k in out["kinds"].items()]
     pooled = [[label, f["trials"], pct(f["top1_pct"]), f["resolvable_trials"], pct(f.get("top1_resolvable_pct")),
                err(f.get("magnitude_error_median_resolvable"))] for label, f in out.get("forms", {}).items()]
     low, high = out["false_positive_ci95_pct"]
@@ -362,7 +372,8 @@ def render_blind(rec: dict) -> str:
             "verdict names a right candidate first; resolvable: the effect shows on the training flight as on the "
             "validation flight, decided by the simulator before any fit (`docs/guide/blind.md`).\n\n"
             + _table(["kind", "form", "trials", "top-1 %", "resolvable", "top-1 % resolvable",
-                      "median magnitude error (resolvable)", "structure named %"], rows)
+                      "median magnitude error (resolvable)", "structure named %",
+                      "explainable beyond the structure: trials, top-1 %"], rows)
             + "\n\n" + _table(["pooled", "trials", "top-1 %", "resolvable", "top-1 % resolvable",
                                  "median magnitude error (resolvable)"], pooled)
             + f"\n\nControls that named an effect: **{out['false_positives']} of {out['controls']}** (95 % Wilson "
