@@ -95,8 +95,8 @@ def evaluate(
     "simulation": settings}``.
     """
     theta = resolve_params(params)
-    if "hold" not in options and not isinstance(data, (Problem, Records)) and recorded_hold(params) is not None:
-        options = {**options, "hold": recorded_hold(params)}
+    if options.get("hold") is None and not isinstance(data, (Problem, Records)):
+        options = {k: v for k, v in options.items() if k != "hold"} | {"hold": recorded_hold(params) or "zoh"}
     problem = as_problem(data, outputs=outputs, **options)
     records = parts(problem)
     sims = [started_simulator(part, theta, x0) for part in records]
