@@ -7,7 +7,7 @@ import pytest
 
 import jaxheli.cli.identify
 from jaxheli.cli import main
-from jaxheli.cli.identify import _polish_line
+from jaxheli.cli.identify import _fit_step_text, _polish_line
 
 
 def _warns_twice(args):
@@ -38,6 +38,12 @@ def test_the_polish_reports_its_own_objective_and_the_search_cost_apart():
     pure = {**POLISH, "objective": "pearson", "objective_before": 1.598, "objective_after": 0.9}
     assert _polish_line(pure, "pearson") == ("polish: Pearson cost (paper Eq. 7) 1.598 -> 0.9 (its objective, also "
                                              "the search cost)")
+
+
+def test_the_fit_line_says_the_step_and_the_hold():
+    assert _fit_step_text({"fit_dt": [0.039783], "hold": "foh"}) == (
+        "at 0.03978 s; sticks held first-order; scored at the record's own step")
+    assert _fit_step_text({"fit_dt": None, "hold": "zoh"}) == "at each record's own step; sticks held zero-order"
 
 
 @pytest.mark.parametrize("argv, message", [

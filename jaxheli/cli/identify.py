@@ -234,10 +234,19 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     print(f"parameters on a bound of the search box (within {100 * TOLERANCE:g} % of its width; the box, not the "
           f"flight, set them): {bounded or 'none'}")
     print_fixed(result.fixed, result.structure)
-    print(f"fit: {result.seconds:.1f} s")
+    print(f"fit: {result.seconds:.1f} s ({_fit_step_text(result.settings)})")
     for path in save_result(result, out, train, validate):
         print(f"wrote {path}")
     return 0
+
+
+def _fit_step_text(settings: dict) -> str:
+    """Where the stages fitted and how the sticks were held, from a result's ``settings``: ``"at 0.0398 s; sticks
+    held first-order; scored at the record's own step"`` or ``"at each record's own step; sticks held zero-order"``."""
+    steps = settings.get("fit_dt")
+    where = "at each record's own step" if not steps else f"at {' / '.join(f'{d:.4g}' for d in steps)} s"
+    hold = {"zoh": "zero-order", "foh": "first-order"}[settings["hold"]]
+    return where + f"; sticks held {hold}" + ("; scored at the record's own step" if steps else "")
 
 
 def _identify_options(args: argparse.Namespace) -> dict:
