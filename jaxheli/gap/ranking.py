@@ -112,13 +112,12 @@ def _by_structure(
     idle = every and not structure_leads(first.entries, hypothesis)  # an effect outshrinks the structure
     if hypothesis is None or not hypothesis.significant or not chosen or idle:
         return Staged(first, first.refit, hypothesis, (), box)
-    further = list(range(len(labels), int(owner.max()) + 1))
-    rows = padded_rows(owner, chosen + further)
-    renumbered = {c: k for k, c in enumerate(chosen + further)}
+    candidates = chosen + list(range(len(labels), int(owner.max()) + 1))  # ascending: further candidates last
+    rows = padded_rows(owner, candidates)
     with stage(f"re-check of {', '.join(labels[c] for c in chosen)} beyond the structure, in the physical ranges"
                ) as now:
         again = ranked(train, validate, hypothesis.theta, [labels[c] for c in chosen], tuple(a[rows] for a in arrays),
-                       np.array([renumbered[int(c)] for c in owner[rows]]), max_steps, min_shrink,
+                       np.searchsorted(candidates, owner[rows]), max_steps, min_shrink,
                        theta_box(hypothesis.theta, physical_box(box)))
         both = {e.effect for e in again.entries if e.significant}
         now.outcome = f"significant in both boxes: {', '.join(sorted(both)) or 'none'}"
