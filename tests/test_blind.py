@@ -15,7 +15,7 @@ from jaxheli.effects import registry as fx
 from jaxheli.gap import ledger
 from jaxheli.benchmark.blind import (
     BOX, KINDS, NOISES, STRENGTHS, STYLES, TRUTHS, base_model, blind_flights, explainable,
-    explainable_beyond_structure, forms, markdown, resolvable,
+    beyond_structure, explainable_beyond_structure, forms, markdown, resolvable,
     run_blind, sample_injection, scenario, summarise, summarise_bases, summarise_records, wilson_interval,
 )
 from jaxheli.benchmark.blind._pool import _process_on, _worker_cores
@@ -142,8 +142,21 @@ def test_summary_arithmetic_and_table():
     assert explainable(past) and not explainable_beyond_structure(past)
     assert explainable_beyond_structure({**past, "oracle_beyond_structure_pct": MIN_SHRINK})
     assert summarise([past, *records[1:]])["kinds"]["input_delay"]["explainable_beyond_structure_trials"] == 1
-    assert ("| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 10.0 % | 1 | 100 | 100 | 10.0 % | 1 | 100 | 100 "
-            "| 10.0 % | 20.0 % | 5.0 % | 85.0 | 0 | 2 | 50 | 2 | 50 |") in markdown(s)
+    assert ("| input_delay | 3 | 33 | 67 | 2 | 50 | 100 | 20.0 % | 10.0 % | 1 | 100 | 100 | 10.0 % | - | - | - | - "
+            "| 1 | 100 | 100 | 10.0 % | 20.0 % | 5.0 % | 85.0 | 0 | 2 | 50 | 2 | 50 |") in markdown(s)
+    # records without the structure's reach have no such subset
+    assert "beyond_structure_trials" not in row and not beyond_structure(records[0])
+
+
+def test_trials_beyond_the_structures_reach_are_the_resolvable_ones_a_hover_model_leaves_above_the_noise():
+    reach = [2.0, 0.8, 3.0]  # the second trial is not resolvable (its training flight), whatever its reach
+    records = [{**r, "structure_reach": v} for r, v in zip(RECORDS, reach)]
+    row = summarise(records)["kinds"]["input_delay"]
+    assert row["beyond_structure_trials"] == 1 and row["top1_beyond_structure_pct"] == 100.0
+    assert beyond_structure(records[0]) and not beyond_structure({**records[0], "structure_reach": 1.0})
+    within = summarise([{**records[0], "structure_reach": 0.9}, *records[1:]])["kinds"]["input_delay"]
+    assert within["beyond_structure_trials"] == 0 and within["top1_beyond_structure_pct"] is None
+    assert "| 1 | 100 | 100 | 10.0 % | 1 | 100 | 100 | 10.0 % |" in markdown(summarise(records))
 
 
 def test_an_earlier_runs_records_are_summarised_again_without_running(tmp_path, capsys):
@@ -193,6 +206,11 @@ def test_the_independent_trials_are_pooled_by_form_in_family_and_other():
     other = pooled["other forms"]
     assert other["trials"] == 3 and other["top1_pct"] == pytest.approx(200 / 3)
     assert other["resolvable_trials"] == 2 and other["top1_resolvable_pct"] == 100.0
+    assert "beyond_structure_trials" not in other
+    reached = forms([{**r, "structure_reach": 0.5 if r["kind"] == "logger_delay" else 2.0} for r in rows])
+    other = reached["other forms"]
+    assert other["beyond_structure_trials"] == 1 and other["top1_beyond_structure_pct"] == 100.0
+    assert reached["in-family"]["beyond_structure_trials"] == 2
 
 
 def test_trials_run_on_the_protocols_seeds_and_record_the_thresholds(tmp_path, monkeypatch):

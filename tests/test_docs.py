@@ -82,18 +82,20 @@ def test_a_blind_record_keeps_the_summary_and_renders_its_tables():
                 "base": "default", "box": "authors", "duration": 30.0, "dt": 0.05}
     summary = {"settings": settings, "false_positives": 1, "controls": 40, "false_positive_ci95_pct": [0.4, 12.9],
                "kinds": {"drag": {"trials": 20, "top1_pct": 55.0, "resolvable_trials": 12, "top1_resolvable_pct": 75.0,
-                                  "magnitude_error_median_resolvable": 0.31, "structure_pct": 40.0},
+                                  "magnitude_error_median_resolvable": 0.31, "structure_pct": 40.0,
+                                  "beyond_structure_trials": 8, "top1_beyond_structure_pct": 87.5},
                          "dryden": {"trials": 20, "top1_pct": 45.0, "resolvable_trials": 15,
                                     "top1_resolvable_pct": 60.0, "magnitude_error_median_resolvable": 0.5,
                                     "structure_pct": 35.0},
                          "none": {"trials": 40, "top1_pct": 97.5, "structure_pct": 60.0}},
                "forms": {"in-family": {"trials": 20, "top1_pct": 55.0, "resolvable_trials": 12,
-                                       "top1_resolvable_pct": 75.0, "magnitude_error_median_resolvable": 0.31}}}
+                                       "top1_resolvable_pct": 75.0, "magnitude_error_median_resolvable": 0.31,
+                                       "beyond_structure_trials": 8, "top1_beyond_structure_pct": 87.5}}}
     page = gen_benchmarks.render_blind({"output": gen_benchmarks._kept({"summary": summary}, "summary")})
-    assert "| `drag` | in family | 20 | 55 | 12 | 75 | 31 % | 40 |" in page
-    assert "| `dryden` | other forms | 20 | 45 | 15 | 60 | 50 % | 35 |" in page
-    assert "| `none` | control | 40 | 98 | - | - | - | 60 |" in page
-    assert "| in-family | 20 | 55 | 12 | 75 | 31 % |" in page
+    assert "| `drag` | in family | 20 | 55 | 12 | 75 | 31 % | 8, 88 | 40 |" in page
+    assert "| `dryden` | other forms | 20 | 45 | 15 | 60 | 50 % | - | 35 |" in page  # a record without the reach
+    assert "| `none` | control | 40 | 98 | - | - | - | - | 60 |" in page
+    assert "| in-family | 20 | 55 | 12 | 75 | 31 % | 8, 88 |" in page
     assert "**1 of 40** (95 % Wilson interval 0-13 %)" in page and "`test` seeds 7000-7019" in page
 
 

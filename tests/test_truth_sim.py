@@ -277,6 +277,7 @@ def test_the_blind_check_flies_independent_trials_and_starts_its_oracle_at_the_s
     assert inj.kind == "quadratic_drag" and right == ("quadratic_drag",) and inj.primary == "Xuu"
     assert facts["detectable"] == (facts["detectability"] > 1) and train.source != validate.source
     assert facts["resolvable"] == (facts["detectable"] and facts["detectability_train"] > 1)
+    assert facts["structure_reach"] >= 0.0 and facts["structure_reach_train"] >= 0.0
     index, start, lower, upper = _oracle_row(inj.kind, inj, *fx.candidate_arrays(fx.ALL, DEFAULT_OUTPUTS))
     assert start[0, 0] == pytest.approx(np.clip(inj.value, lower[0, 0], upper[0, 0]))
     with pytest.raises(ValueError, match="unknown truth simulator"):

@@ -14,6 +14,7 @@ import numpy as np
 from ..data.flight import FlightData
 from ..effects import registry as fx
 from ..effects.plant import no_effect
+from .structure_reach import StructureReach, structure_reach
 from .truth import OUTPUTS, Record, TruthTrial, truth_trial
 
 
@@ -21,8 +22,9 @@ from .truth import OUTPUTS, Record, TruthTrial, truth_trial
 class IndependentTrial:
     """Flights of an injected ``kind`` (its ``parts``), the ``candidates`` that count as right, the ``oracle``
     candidate (``"none"`` where no candidate shares a parameter) with its ``eta`` (library layout) at the shared
-    values, the compared parameter ``primary`` and its true ``value``, and the simulator's detectability
-    (``score``, ``detectable``)."""
+    values, the compared parameter ``primary`` and its true ``value``, the simulator's detectability
+    (``score``, ``detectable``) and, where asked, how far a hover model alone takes the effect up (``reach``,
+    :func:`~jaxheli.benchmark.structure_reach.structure_reach`)."""
 
     kind: str
     parts: tuple[str, ...]
@@ -37,14 +39,15 @@ class IndependentTrial:
     detectable: bool
     train_score: float
     resolvable: bool
+    reach: StructureReach | None = None
 
 
 def independent_trial(kind: str, seed: int, theta: np.ndarray, *, style: str, noise: float = 1.0,
                       strength: float = 1.0, duration: float = 30.0, dt: float = 0.05,
-                      outputs: tuple[str, ...] = OUTPUTS) -> IndependentTrial:
+                      outputs: tuple[str, ...] = OUTPUTS, reach: bool = False) -> IndependentTrial:
     """:func:`~jaxheli.benchmark.truth.truth_trial` of ``kind`` and ``seed`` (passed through as given) on the truth
     ``theta``, training ``style``, noise multiple, strength, flight length and sample time, in the library's
-    terms."""
+    terms; with ``reach``, the effect's reach beyond the hover model too (a least-squares fit, seconds)."""
     trial = truth_trial(kind, seed, theta, style=style, noise=noise, strength=strength, duration=duration, dt=dt,
                         outputs=outputs)
     injected = trial.injected
@@ -58,8 +61,9 @@ def independent_trial(kind: str, seed: int, theta: np.ndarray, *, style: str, no
         primary, value = next(iter(injected.shared[oracle].items()))
     flights = [_flight(trial, record, seed, role, outputs) for role, record in
                (("train", trial.train), ("validate", trial.validate))]
+    found = structure_reach(theta, trial.train, trial.validate, trial.noise, outputs) if reach else None
     return IndependentTrial(kind, injected.parts, *flights, injected.candidates, oracle, eta, primary, float(value),
-                            trial.score, trial.detectable, trial.train_score, trial.resolvable)
+                            trial.score, trial.detectable, trial.train_score, trial.resolvable, found)
 
 
 def _flight(trial: TruthTrial, record: Record, seed: int, role: str, outputs: tuple[str, ...]) -> FlightData:

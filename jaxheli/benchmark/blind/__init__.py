@@ -33,6 +33,7 @@ from ._scenario import BOX as BOX, BOXES as BOXES, NOISES as NOISES, STRENGTHS a
 from ._scenario import TRUTHS as TRUTHS, VALIDATE_EXCITATION as VALIDATE_EXCITATION, Scenario as Scenario
 from ._scenario import TRUTH_CLASSES as TRUTH_CLASSES, scenario as scenario
 from ._summary import detectable as detectable, forms as forms, explainable as explainable, identifiable as identifiable
+from ._summary import beyond_structure as beyond_structure
 from ._summary import explainable_beyond_structure as explainable_beyond_structure
 from ._summary import resolvable as resolvable, summarise as summarise, summarise_bases as summarise_bases
 from ._summary import summarise_records as summarise_records, wilson_interval as wilson_interval

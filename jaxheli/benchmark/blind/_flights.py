@@ -82,7 +82,8 @@ def trial_flights(
 ) -> tuple[Injection, FlightData, FlightData, tuple[str, ...], dict[str, Any]]:
     """A trial's flights by the ``truth`` simulator (:data:`TRUTHS_SIM`): ``(injection, train, validate, right,
     facts)``, ``injection`` the library kind the oracle fits at its true values, ``right`` the kinds a correct
-    diagnosis names, ``facts`` what the record adds (the independent simulator's detectability and parts)."""
+    diagnosis names, ``facts`` what the record adds (the independent simulator's detectability, the residual a hover
+    model fitted alone leaves of the effect, :func:`~jaxheli.benchmark.structure_reach.structure_reach`, and parts)."""
     if truth == "library":
         injection_seed, flight_seed = _library_seeds(kind, seed)
         inj = sample_injection(kind, injection_seed, outputs, duration, where.strength)
@@ -94,10 +95,11 @@ def trial_flights(
                                                "resolvable": score > 1.0 and train_score > 1.0}
     if truth == "independent":
         ind = independent_trial(kind, seed, where.theta, style=where.style, noise=where.noise,
-                                strength=where.strength, duration=duration, dt=dt, outputs=outputs)
+                                strength=where.strength, duration=duration, dt=dt, outputs=outputs, reach=True)
         inj = Injection(ind.oracle, ind.eta, 0.0, 1.0, ind.primary, ind.value)
         return inj, ind.train, ind.validate, ind.candidates, {
             "oracle_kind": ind.oracle, "parts": list(ind.parts), "right": list(ind.candidates),
             "detectability": ind.score, "detectable": ind.detectable, "detectability_train": ind.train_score,
-            "resolvable": ind.resolvable}
+            "resolvable": ind.resolvable, "structure_reach": ind.reach.beyond,
+            "structure_reach_train": ind.reach.train}
     raise ValueError(f"blind trial: unknown truth simulator {truth!r}; simulators are {tuple(TRUTHS_SIM)}")

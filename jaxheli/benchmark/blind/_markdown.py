@@ -16,11 +16,13 @@ def markdown(summary: dict[str, Any]) -> str:
              "median magnitude error (detectable, named right) | "
              "resolvable (training flight too) | top-1 % resolvable | in tie % resolvable | "
              "median magnitude error (resolvable) | "
+             "beyond the structure's reach (hover re-fit leaves > sigma) | top-1 % beyond | in tie % beyond | "
+             "median magnitude error (beyond) | "
              f"identifiable (oracle z >= {MIN_Z:g}) | top-1 % identifiable | in tie % identifiable | "
              "median magnitude error (identifiable) | training fit's (identifiable) | oracle's (identifiable) | "
              f"median shrink vs oracle % | base structure named % | explainable (oracle shrink >= {MIN_SHRINK:g} %) | "
              "top-1 % explainable | explainable beyond the structure | top-1 % explainable beyond the structure |",
-             "|" + "---|" * 25]
+             "|" + "---|" * 29]
 
     def cell(value: float | None, fmt: str) -> str:
         return "-" if value is None else format(value, fmt)
@@ -33,7 +35,7 @@ def markdown(summary: dict[str, Any]) -> str:
                           f" | {cell(row.get(f'in_tie_{s}_pct'), '.0f')}"
                           f" | {error(row.get(f'magnitude_error_median_{s}'))}"
                           + (f" | {error(row.get('magnitude_error_median_named'))}" if s == "detectable" else "")
-                          for s in ("detectable", "resolvable", "identifiable"))
+                          for s in ("detectable", "resolvable", "beyond_structure", "identifiable"))
         lines.append(f"| {kind} | {row['trials']} | {cell(row['top1_pct'], '.0f')} | {cell(row['in_tie_pct'], '.0f')}"
                      f"{subsets} | {error(row.get('train_magnitude_error_median_identifiable'))}"
                      f" | {error(row.get('oracle_magnitude_error_median_identifiable'))}"
@@ -44,7 +46,10 @@ def markdown(summary: dict[str, Any]) -> str:
     for label, pool in summary.get("forms", {}).items():
         lines.append(f"\nPooled over the {label} kinds (independent simulator): top-1 {cell(pool['top1_pct'], '.0f')} % "
                      f"of {pool['trials']} trials, {cell(pool.get('top1_resolvable_pct'), '.0f')} % of the "
-                     f"{pool.get('resolvable_trials', 0)} resolvable")
+                     f"{pool.get('resolvable_trials', 0)} resolvable"
+                     + ("" if "beyond_structure_trials" not in pool else
+                        f", {cell(pool.get('top1_beyond_structure_pct'), '.0f')} % of the "
+                        f"{pool['beyond_structure_trials']} beyond the structure's reach"))
     ci = summary.get("false_positive_ci95_pct")
     lines.append(f"\nFalse positives on effect-free flights: {cell(summary['false_positive_pct'], '.0f')} %"
                  + (f" ({summary['false_positives']} of {summary['controls']}; 95 % Wilson interval "

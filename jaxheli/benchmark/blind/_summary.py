@@ -1,5 +1,5 @@
-"""A blind run's statistics: which trials count in each subset (detectable, resolvable, identifiable,
-explainable), per-kind rates and median magnitude errors, the false-positive rate with its Wilson interval, and
+"""A blind run's statistics: which trials count in each subset (detectable, resolvable, resolvable beyond the
+structure, identifiable, explainable), per-kind rates and median magnitude errors, the false-positive rate with its Wilson interval, and
 other base methods set beside PEM on the same trials."""
 
 from __future__ import annotations
@@ -58,6 +58,17 @@ def resolvable(record: dict[str, Any]) -> bool:
     return detectable(record) and bool(record.get("resolvable", False))
 
 
+def beyond_structure(record: dict[str, Any]) -> bool:
+    """A resolvable trial (:func:`resolvable`) whose effect a hover model alone cannot take up: the 40 parameters
+    fitted in the physical ranges to the noise-free training flight leave more than the sensor noise of the
+    effect on the noise-free validation flight (``structure_reach`` > 1,
+    :func:`~jaxheli.benchmark.structure_reach.structure_reach`), decided by the truth simulator apart from any
+    method's fit to the noisy flights. Where it is not, the flights cannot tell the effect from another hover model, so
+    a verdict of the base model's structure is all the data support. ``False`` in records without the measure."""
+    reach = record.get("structure_reach")
+    return resolvable(record) and reach is not None and reach > 1.0
+
+
 def _pct(flags: list[bool]) -> float | None:
     return 100.0 * float(np.mean(flags)) if flags else None
 
@@ -80,7 +91,8 @@ def _subset(rows: list[dict[str, Any]], label: str) -> dict[str, Any]:
 
 def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
     """Per kind: trials, top-1 % and in-tie-set %, over all trials, over the detectable ones (:func:`detectable`),
-    the resolvable ones (:func:`resolvable`) and the identifiable ones (:func:`identifiable`), with the median relative
+    the resolvable ones (:func:`resolvable`), those resolvable beyond the structure where the records have it
+    (:func:`beyond_structure`) and the identifiable ones (:func:`identifiable`), with the median relative
     magnitude error of each subset (the diagnosis's, its training fit's and the oracle's; a trial whose verdict does
     not name its effect counts its training fit's, so the detectable ones' are also given over the trials named right
     alone, ``magnitude_error_median_named``), and the median shrink
@@ -100,6 +112,8 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
             row["magnitude_error_median_named"] = _median([r["magnitude_error"] for r in seen
                                                            if r["correct"] and "magnitude_error" in r])
             row.update(_subset([r for r in seen if resolvable(r)], "resolvable"))
+            if any("structure_reach" in r for r in rs):
+                row.update(_subset([r for r in seen if beyond_structure(r)], "beyond_structure"))
             row.update(_subset([r for r in seen if identifiable(r)], "identifiable"))
             reach = [r for r in seen if explainable(r)]
             row.update(explainable_trials=len(reach), top1_explainable_pct=_pct([r["correct"] for r in reach]))
@@ -119,8 +133,9 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
 def forms(records: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """Top-1 pooled over the independent simulator's effect trials by form: ``in-family`` (the kinds of
     :data:`~jaxheli.benchmark.truth.IN_FAMILY`, whose nearest candidate comes within the noise) and ``other forms``
-    (every other kind that a candidate counts as naming, ``two_at_once`` included), over all trials and over the
-    resolvable ones (:func:`resolvable`)."""
+    (every other kind that a candidate counts as naming, ``two_at_once`` included), over all trials, over the
+    resolvable ones (:func:`resolvable`) and, where the records have it, over those resolvable beyond the structure
+    (:func:`beyond_structure`)."""
     pools = {"in-family": lambda k: k in IN_FAMILY,
              "other forms": lambda k: k not in IN_FAMILY and k in KIND_CANDIDATES and KIND_CANDIDATES[k] != ("none",)}
     out = {}
@@ -129,6 +144,8 @@ def forms(records: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
         if rows:
             out[label] = {"trials": len(rows), "top1_pct": _pct([r["correct"] for r in rows]),
                           **_subset([r for r in rows if resolvable(r)], "resolvable")}
+            if any("structure_reach" in r for r in rows):
+                out[label].update(_subset([r for r in rows if beyond_structure(r)], "beyond_structure"))
     return out
 
 
