@@ -53,16 +53,13 @@ def form_gap(theta: np.ndarray, effects: truth.Effects, candidates: tuple[str, .
     noise ``noise`` times :data:`~jaxheli.benchmark.truth.NOISE`."""
     sigma = np.array([noise * truth.NOISE[c] for c in outputs])
     flown = truth.fly(theta, effects, style=style, duration=duration, dt=dt, seed=seed, noise=sigma, outputs=outputs)
-    flight = FlightData(flown.time, flown.sticks, flown.clean, tuple(outputs), source=f"noise-free truth ({seed})")
-    pred = make_predictor(flight, segment=SEGMENT, smooth=smooths(RESTART, "form_gap"))
-    pred = dataclasses.replace(pred, noise_var=jnp.asarray(sigma**2))
-    pred = dataclasses.replace(pred, track=jnp.asarray(tune_track(pred, jnp.asarray(theta))))
+    pred = noise_free_predictor(flown, sigma, tuple(outputs), theta)
     base = no_effect(tuple(outputs))
-    size = _ratio(pred.for_walks(False), theta, base, flown.clean, sigma)
+    size = residual_ratio(pred.for_walks(False), theta, base, sigma)
     best = FormGap(size, size, "none", {})
     for name in (c for c in candidates if c != "none"):
         fitted, values = _fit(pred.for_walks(name == _WALKING), theta, base, name, tuple(outputs), sigma)
-        residual = _ratio(pred.for_walks(name == _WALKING), theta, fitted, flown.clean, sigma)
+        residual = residual_ratio(pred.for_walks(name == _WALKING), theta, fitted, sigma)
         if residual < best.residual:
             best = FormGap(size, residual, name, values)
     return best
@@ -92,10 +89,22 @@ def kind_gap(kind: str, seed: int, theta: np.ndarray, *, style: str = "sweep", s
                     outputs=outputs)
 
 
-def _ratio(pred: Predictor, theta: np.ndarray, eta: np.ndarray, clean: np.ndarray, sigma: np.ndarray) -> float:
-    """``max_k rms_t(pred(theta, eta) - clean) / sigma_k``."""
+def noise_free_predictor(record: truth.Record, sigma: np.ndarray, outputs: tuple[str, ...], theta: np.ndarray
+                         ) -> Predictor:
+    """The diagnosis's predictor (:func:`~jaxheli.gap.predictor.make_predictor`: restarts every
+    :data:`~jaxheli.gap.predictor.SEGMENT` s as :data:`~jaxheli.gap.predictor.RESTART`) of ``record``'s noise-free
+    readings of ``outputs``, its restart filter set to the sensor noise ``sigma`` (per channel) and tuned to the
+    truth ``theta``."""
+    flight = FlightData(record.time, record.sticks, record.clean, tuple(outputs), source="noise-free truth flight")
+    pred = make_predictor(flight, segment=SEGMENT, smooth=smooths(RESTART, "noise_free_predictor"))
+    pred = dataclasses.replace(pred, noise_var=jnp.asarray(sigma**2))
+    return dataclasses.replace(pred, track=jnp.asarray(tune_track(pred, jnp.asarray(theta))))
+
+
+def residual_ratio(pred: Predictor, theta: np.ndarray, eta: np.ndarray, sigma: np.ndarray) -> float:
+    """``max_k rms_t(pred(theta, eta) - reading) / sigma_k`` over ``pred``'s readings."""
     y = np.asarray(_predict(pred, jnp.asarray(theta), jnp.asarray(eta)))
-    return float(np.max(np.sqrt(np.mean((y - clean) ** 2, axis=0)) / sigma))
+    return float(np.max(np.sqrt(np.mean((y - np.asarray(pred.measured)) ** 2, axis=0)) / sigma))
 
 
 @quick_jit

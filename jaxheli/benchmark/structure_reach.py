@@ -5,11 +5,11 @@ physical ranges) and credits an effect only for what it explains beyond that re-
 the training flight, already predicts the held-out flight with the effect to within the sensor noise, no diagnosis
 can tell the effect from a different hover model on these flights. This module decides that from the truth
 simulator's noise-free readings, apart from any method's fit to the noisy data: the 40 parameters are fitted by least
-squares in the physical box (:func:`~jaxheli.bounds.physical_box`), from the truth's own values, to the noise-free
-training readings, predicted the way the diagnosis predicts a flight (:func:`~jaxheli.gap.predictor.make_predictor`:
-restarts every :data:`~jaxheli.gap.predictor.SEGMENT` s as :data:`~jaxheli.gap.predictor.RESTART`, the restart
-filter set to the sensor noise), and the noise-free validation readings are predicted with them. The residual left
-there, ``max_k rms_t(prediction - reading) / sigma_k``, above 1 says the effect lies beyond the structure's reach.
+squares in the physical box (:func:`~jaxheli.bounds.named_box` ``"wide"``), from the truth's own values, to the
+noise-free training readings, predicted the way the diagnosis predicts a flight
+(:func:`~jaxheli.benchmark.forms.noise_free_predictor`), and the noise-free validation readings are predicted with
+them. The residual left there, ``max_k rms_t(prediction - reading) / sigma_k``, above 1 says the effect lies beyond
+the structure's reach.
 """
 
 from __future__ import annotations
@@ -23,10 +23,10 @@ import scipy.optimize
 
 from .._types import Array, Float
 from .._xla import quick_jit
-from ..bounds import Bounds, physical_box
-from ..data.flight import FlightData
+from ..bounds import named_box
 from ..effects.plant import no_effect
-from ..gap.predictor import RESTART, SEGMENT, Predictor, make_predictor, smooths, tune_track
+from ..gap.predictor import Predictor
+from .forms import noise_free_predictor, residual_ratio
 from .truth import Record
 
 STEPS = 40
@@ -54,8 +54,8 @@ def structure_reach(theta: Float[np.ndarray, "40"], train: Record, validate: Rec
     """:class:`StructureReach` of the noise-free ``train`` and ``validate`` flights (:class:`~.truth.Record`) of
     the truth ``theta`` (40 parameters), their sensor-noise std ``sigma`` per channel of ``outputs``."""
     sigma = np.asarray(sigma, dtype=np.float64)
-    fit_pred, val_pred = (_predictor(record, sigma, outputs, theta) for record in (train, validate))
-    box = physical_box(Bounds()) or Bounds()
+    fit_pred, val_pred = (noise_free_predictor(record, sigma, outputs, theta) for record in (train, validate))
+    box = named_box("wide")
     lower, upper = np.asarray(box.lower, np.float64), np.asarray(box.upper, np.float64)
     base = jnp.asarray(no_effect(tuple(outputs)))
     scale = jnp.asarray(np.tile(sigma, fit_pred.measured.shape[0]))
@@ -64,29 +64,9 @@ def structure_reach(theta: Float[np.ndarray, "40"], train: Record, validate: Rec
         lambda z: np.asarray(_residuals(jnp.asarray(z), fit_pred, base, scale)), start,
         jac=lambda z: np.asarray(_jacobian(jnp.asarray(z), fit_pred, base, scale)), bounds=(lower, upper),
         max_nfev=STEPS, x_scale="jac").x
-    return StructureReach(size=_ratio(val_pred, theta, base, sigma), beyond=_ratio(val_pred, fitted, base, sigma),
-                          train=_ratio(fit_pred, fitted, base, sigma))
-
-
-def _predictor(record: Record, sigma: np.ndarray, outputs: tuple[str, ...], theta: np.ndarray) -> Predictor:
-    """The diagnosis's predictor of ``record``'s noise-free readings, its filter set to the sensor noise and tuned
-    to the truth ``theta``."""
-    flight = FlightData(record.time, record.sticks, record.clean, tuple(outputs), source="noise-free truth flight")
-    pred = make_predictor(flight, segment=SEGMENT, smooth=smooths(RESTART, "structure_reach"))
-    pred = dataclasses.replace(pred, noise_var=jnp.asarray(sigma**2))
-    return dataclasses.replace(pred, track=jnp.asarray(tune_track(pred, jnp.asarray(theta))))
-
-
-def _ratio(pred: Predictor, theta: np.ndarray, base: jax.Array, sigma: np.ndarray) -> float:
-    """``max_k rms_t(pred(theta) - reading) / sigma_k``."""
-    y = np.asarray(_predict(pred, jnp.asarray(theta), base))
-    return float(np.max(np.sqrt(np.mean((y - np.asarray(pred.measured)) ** 2, axis=0)) / sigma))
-
-
-@quick_jit
-def _predict(pred: Predictor, theta: Array, base: Array) -> Array:
-    """``pred(theta, base)``, compiled."""
-    return pred(theta, base)
+    return StructureReach(size=residual_ratio(val_pred, theta, base, sigma),
+                          beyond=residual_ratio(val_pred, fitted, base, sigma),
+                          train=residual_ratio(fit_pred, fitted, base, sigma))
 
 
 def _errors(theta: Float[Array, "40"], pred: Predictor, base: Float[Array, "E"], scale: Float[Array, "M"]

@@ -1,6 +1,6 @@
 """A blind run's statistics: which trials count in each subset (detectable, resolvable, resolvable beyond the
-structure, identifiable, explainable), per-kind rates and median magnitude errors, the false-positive rate with its Wilson interval, and
-other base methods set beside PEM on the same trials."""
+structure, identifiable, explainable), per-kind rates and median magnitude errors, the false-positive rate with its
+Wilson interval, and other base methods set beside PEM on the same trials."""
 
 from __future__ import annotations
 
