@@ -15,7 +15,7 @@ from jaxheli.bounds import Bounds
 from jaxheli.gap.candidate_records import Refit, Structure
 from jaxheli.gap.fit_effect import EffectFit
 from jaxheli.gap.significance import HeldOut, shrink_entries
-from jaxheli.gap.verdict import Verdict, find, sentence
+from jaxheli.gap.verdict import Verdict, find, named, named_entry, sentence
 from jaxheli.model import TABLE2
 from jaxheli.synth.piloted import DEFAULT_OUTPUTS
 
@@ -151,6 +151,19 @@ def test_the_record_says_what_was_found():
 _OPTION = re.compile(r"(?<![\\w-])--[a-z][a-z-]+")
 
 
+def test_the_final_fit_and_the_blind_check_take_the_effect_the_verdict_names():
+    """Beyond a named structure the verdict names the re-check's best (here the lag), not the box's (the delay): the
+    entry whose size is re-identified, and which the blind check grades, is the box ranking's entry of the lag."""
+    ranked = _entries()
+    recheck = (dataclasses.replace(ranked[1], shrink_pct=30.0), dataclasses.replace(ranked[0], shrink_pct=20.0))
+    verdict = find(ranked, None, _structure(45.0), recheck)
+    assert verdict.structure is not None and named(ranked).effect == "input_delay"
+    assert verdict.effect.effect == "actuator_lag" and named_entry(verdict, ranked) is ranked[1]
+    assert named_entry(find(ranked), ranked) is ranked[0]
+    unsettled = find(ranked, _refit(settled=False))
+    assert unsettled.effect is None and named_entry(unsettled, ranked) is None
+
+
 def test_no_module_of_the_gap_package_words_a_command_line_option():
     """Strings in code under ``jaxheli/gap/`` (docstrings aside) name no ``--option``: the command line words
     its own advice."""
@@ -274,7 +287,7 @@ def test_the_staged_ranking_re_checks_beyond_process_noise_when_it_leads(monkeyp
     quiet = [dataclasses.replace(e, significant=False) for e in beyond]
     after = dataclasses.replace(noise, shrink_pct=2.0, significant=False)
     past_noise = (["input_delay", "actuator_lag"], "noise", noise)
-    for first, answer["process_noise"], expected, named in (
+    for first, answer["process_noise"], expected, name in (
             ([noise, delay, lag], list(beyond), [past_noise], "input_delay"),
             ([noise, bias, delay, lag], list(beyond), [past_noise], "input_delay"),
             ([noise, bias, lag], quiet, [past_noise, (["process_noise"], "bias", bias)], "output_bias_drift"),
@@ -286,7 +299,7 @@ def test_the_staged_ranking_re_checks_beyond_process_noise_when_it_leads(monkeyp
         assert asked == expected
         assert found.beyond_noise == (tuple(answer["process_noise"]) if expected else ())
         assert dict(found.noise_beyond) == ({"output_bias_drift": after} if len(expected) > 1 else {})
-        assert ranking.named(first, found.beyond_noise, found.noise_beyond).effect == named
+        assert named(first, found.beyond_noise, found.noise_beyond).effect == name
 
 
 def test_process_noise_gives_way_to_a_bias_it_adds_nothing_beyond():

@@ -44,7 +44,7 @@ from .reference import theta_box
 from .significance import MIN_SHRINK
 from .structure import physical_box, structure_hypothesis
 from .thresholds import THRESHOLDS
-from .verdict import NOISE, credited_past_noise, explains_more, named as named, structure_leads as structure_leads
+from .verdict import NOISE, credited_past_noise, explains_more, find, named_entry, structure_leads as structure_leads
 
 
 class Staged(NamedTuple):
@@ -247,7 +247,8 @@ def diagnose_effects(
             combination = _combine(train, validate, base_theta, chosen, max_steps, min_shrink,
                                    _warm(ranking, chosen, train.outputs), shape, box)
             now.outcome = f"shrinks the held-out gap {combination.shrink_pct:.1f} %"
-    best = named(ranking, stages.beyond_noise, stages.noise_beyond)
+    verdict = find(ranking, refit, structure, stages.recheck, stages.beyond_noise, stages.noise_beyond)
+    best = named_entry(verdict, ranking)
     final = None
     if best is not None and box is not None:
         with stage(f"final fit: {best.effect}'s size re-identified with the base model on both flights") as now:

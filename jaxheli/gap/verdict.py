@@ -147,6 +147,14 @@ def find(
     )
 
 
+def named_entry(verdict: Verdict, ranking: Sequence[Entry]) -> Entry | None:
+    """The entry of the box's ``ranking`` for the effect ``verdict`` names (beyond the structure or beyond process
+    noise, it may be another than :func:`named`'s), from which its size is re-identified on both flights; ``None``
+    when it names none."""
+    name = None if verdict.effect is None else verdict.effect.effect
+    return next((e for e in ranking if e.effect == name), None)
+
+
 def sentence(verdict: Verdict) -> str:
     """``verdict`` in words: the named effect, or ``"no significant effect"``; before it the structure when named,
     and first the under-fitted base (only that while it is still converging, with :func:`still_converging`)."""

@@ -15,7 +15,8 @@ from ...gap.final_fit import final_fit
 from ...gap.fit_effect import MAX_STEPS
 from ...gap.predictor import RESTART, SEGMENT, smooths
 from ...gap.candidates import Ranked
-from ...gap.ranking import named, predictor_pair, staged, structure_leads
+from ...gap.ranking import predictor_pair, staged, structure_leads
+from ...gap.verdict import find, named_entry
 from ...gap.records import Entry, Final, Refit, Structure
 from ...gap.reference import theta_box
 from ...gap.significance import MIN_SHRINK
@@ -75,7 +76,8 @@ def run_trial(
                     min_shrink, theta_box(theta, Bounds(*BOXES[box])))
     ranking, refit, structure = stages.ranked.entries, stages.refit, stages.structure
     scored = stages.ranked.scored
-    best = named(ranking, stages.beyond_noise, stages.noise_beyond)
+    verdict = find(ranking, refit, structure, stages.recheck, stages.beyond_noise, stages.noise_beyond)
+    best = named_entry(verdict, ranking)
     final = None
     if best is not None:
         with stage(f"final fit: {best.effect}'s size re-identified with the base model on both flights"):
@@ -85,7 +87,7 @@ def run_trial(
     record = {"kind": kind, "seed": int(seed), "truth_sim": truth, **facts, "truth": where.truth, "truth_class": truths,
               "style": where.style, "noise": where.noise, "strength": where.strength, "top": top,
               "correct": top in right,
-              "in_tie": top in right or (best is not None and any(k in best.tied_with for k in right)),
+              "in_tie": top in right or any(k in verdict.tied_with for k in right),
               "true_value": inj.value, "primary": inj.primary,
               "oracle_shrink_pct": _oracle_shrink(stages.ranked),
               "oracle_beyond_structure_pct": None if stages.rechecked is None else _oracle_shrink(stages.rechecked),
