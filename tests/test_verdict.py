@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from jaxheli.benchmark.blind import regrade, regraded_top
 from jaxheli.cli.diagnosis_text import verdict_line
 from jaxheli.bounds import Bounds
 from jaxheli.gap.candidate_records import Refit, Structure
@@ -162,6 +163,24 @@ def test_the_final_fit_and_the_blind_check_take_the_effect_the_verdict_names():
     assert named_entry(find(ranked), ranked) is ranked[0]
     unsettled = find(ranked, _refit(settled=False))
     assert unsettled.effect is None and named_entry(unsettled, ranked) is None
+
+
+def test_a_blind_record_graded_again_gives_the_verdict_of_its_fits():
+    """A blind trial's record keeps its fits without their base parameters; graded again, it names what the verdict
+    of those fits names."""
+    ranked, refit, structure = _entries(), _refit(), _structure(45.0)
+    recheck = (dataclasses.replace(ranked[1], shrink_pct=30.0), dataclasses.replace(ranked[0], shrink_pct=20.0))
+
+    def kept(r):
+        return {k: v for k, v in r.to_json().items() if k != "theta"}
+
+    record = {"ranking": [kept(e) for e in ranked], "base_refit": kept(refit), "structure": kept(structure),
+              "recheck": [kept(e) for e in recheck], "beyond_noise": [], "noise_beyond": {}}
+    verdict = find(ranked, refit, structure, recheck)
+    assert regraded_top(record) == verdict.effect.effect == "actuator_lag"
+    assert sentence(regrade(record)) == sentence(verdict)
+    quiet = [kept(dataclasses.replace(e, significant=False, tied_with=())) for e in ranked]
+    assert regraded_top({**record, "ranking": quiet}) == "none"
 
 
 def test_no_module_of_the_gap_package_words_a_command_line_option():
