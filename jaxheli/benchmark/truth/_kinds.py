@@ -115,15 +115,16 @@ def _servo_dynamics(d: Dice) -> tuple[Effects, dict]:
     """A second-order servo on one axis, ``wn`` 12-25 rad/s over strength (at least 6), ``zeta`` 0.5-0.9, its rate
     limited to 2-5 stick/s over strength (at least 1) and a backlash of 0.005-0.015 stick times strength (at most
     0.04); shared: the low-frequency equivalent lag and delay ``2 zeta / wn`` (first moment of the impulse
-    response)."""
+    response), and the servo candidate's shape ``1 / (4 zeta^2)``, slew ``1 / rate`` and play."""
     axis = int(d.rng.integers(len(AXES)))
     wn, zeta = max(6.0, d.rng.uniform(12.0, 25.0) / d.strength), d.rng.uniform(0.5, 0.9)
     rate = max(1.0, d.rng.uniform(2.0, 5.0) / d.strength)
     backlash = min(0.04, d.rng.uniform(0.005, 0.015) * d.strength)
     servo = Servo(wn=_on_axis(axis, wn, np.inf), zeta=_on_axis(axis, zeta, 0.7), rate=_on_axis(axis, rate, np.inf),
                   backlash=_on_axis(axis, backlash, 0.0))
-    tau = 2.0 * zeta / wn
-    return Effects(servo=servo), {"actuator_lag": {f"lag_{AXES[axis]}": tau},
+    tau, a = 2.0 * zeta / wn, AXES[axis]
+    return Effects(servo=servo), {"actuator_lag": {f"lag_{a}": tau, "servo_shape": 0.25 / zeta**2,
+                                                   f"slew_{a}": 1.0 / rate, f"play_{a}": backlash},
                                   "input_delay": {f"delay_{AXES[axis]}": tau}}
 
 
