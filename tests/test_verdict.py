@@ -183,6 +183,22 @@ def test_a_blind_record_graded_again_gives_the_verdict_of_its_fits():
     assert regraded_top({**record, "ranking": quiet}) == "none"
 
 
+def test_a_servo_tied_with_a_delay_names_the_delay():
+    """Within the noise the fewer parameters are named: a servo ranked first but tied with an input delay gives way
+    to the delay, in the box and beyond a named structure; a servo tied with another effect, or alone, stays."""
+    lag, delay, saturation = _entries((0.62, 0.6, 0.97))  # the lag's shrink (40 %) now leads the delay's (38 %)
+    assert (lag.effect, delay.effect) == ("actuator_lag", "input_delay")
+    ranking = [dataclasses.replace(lag, tied_with=("input_delay",)),
+               dataclasses.replace(delay, tied_with=("actuator_lag",)), saturation]
+    tied = find(ranking)
+    assert tied.effect is ranking[1] and tied.tied_with == ("actuator_lag",)
+    assert named_entry(tied, ranking) is ranking[1]
+    recheck = tuple(ranking[:2])
+    assert find(ranking, None, _structure(45.0), recheck).effect is recheck[1]
+    alone = [dataclasses.replace(ranking[0], tied_with=("control_saturation",)), *ranking[1:]]
+    assert find(alone).effect is alone[0]
+
+
 def test_no_module_of_the_gap_package_words_a_command_line_option():
     """Strings in code under ``jaxheli/gap/`` (docstrings aside) name no ``--option``: the command line words
     its own advice."""

@@ -61,6 +61,20 @@ NOISE = "process_noise"
 (:func:`past_noise`)."""
 
 
+SIMPLER: Mapping[str, str] = MappingProxyType({"actuator_lag": "input_delay"})
+"""A named effect and the simpler one named in its place when the two are tied: a servo on every stick axis (lag,
+shared second-order shape, rate limit and play: 13 parameters) and the input delay it can stand in for (4)."""
+
+
+def simpler(effect: Entry, tied_with: Sequence[str], pool: Sequence[Entry]) -> Entry:
+    """``effect``, or the entry of ``pool`` (the ranking ``effect`` was named from) of its :data:`SIMPLER` stand-in
+    when that is among ``tied_with``: within the noise, the fewer parameters are named."""
+    other = SIMPLER.get(effect.effect)
+    if other is None or other not in tied_with:
+        return effect
+    return next((e for e in pool if e.effect == other), effect)
+
+
 def credited_past_noise(entry: Entry) -> bool:
     """Whether an effect ranked beyond process noise (:func:`~jaxheli.gap.noise_last.beyond_noise`) is named in its
     place: significant there, and its training flight's likelihood ratio over the noise alone at
@@ -132,10 +146,16 @@ def find(
     best = named(ranking, beyond_noise, noise_beyond)
     leads = structure_leads(ranking, structure)
     effect = instead or best
-    if instead is None and best is not None and leads:
+    if instead is not None:
+        effect = simpler(instead, instead.tied_with, beyond_noise)
+    elif best is not None and leads:
         significant = {e.effect for e in ranking if e.significant}
         effect = next((r for r in recheck if r.effect in significant), best)
         best = next(e for e in ranking if e.effect == effect.effect)
+        effect = simpler(effect, best.tied_with, recheck if any(effect is r for r in recheck) else ranking)
+        best = next(e for e in ranking if e.effect == effect.effect)
+    elif best is not None:
+        effect = best = simpler(best, best.tied_with, ranking)
     return Verdict(
         under_fitted=refit if refit is not None and refit.under_fitted else None,
         structure=structure if leads else None,
@@ -143,7 +163,7 @@ def find(
         tied_with=effect.tied_with if instead is not None else best.tied_with if best is not None else (),
         outshrinks=structure if best is not None and explains_more(best, structure) else None,
         noise=noise,
-        noise_after=noise_beyond.get(instead.effect) if instead is not None else None,
+        noise_after=noise_beyond.get(effect.effect) if instead is not None else None,
     )
 
 
