@@ -42,10 +42,12 @@ a bias with drift and walk; governor droop the rotor-speed coupling; quantisatio
 (no candidate has their form). ``two_at_once``: either part's candidates. No kind is drawn in a candidate's own
 form, though the nearest candidate comes within the noise of those in :data:`IN_FAMILY`."""
 
-IN_FAMILY: tuple[str, ...] = ("servo_limits", "drag")
+IN_FAMILY: tuple[str, ...] = ("servo_limits", "servo_dynamics", "drag")
 """Kinds whose nearest candidate reproduces the drawn effect within the sensor noise on some draws
-(``benchmarks/truth_forms.py``): travel stops and a rate limit as the smooth saturation, at the sizes a 30-s
-flight reaches, and drag along the airspeed as per-axis drag for some wind directions. Every other kind lies outside
+(``benchmarks/truth_forms.py``, ``benchmarks/trial_forms.py``): travel stops and a rate limit as the smooth
+saturation, at the sizes a 30-s flight reaches; a second-order, rate-limited servo with backlash as the servo
+candidate (lag, shape, rate limit, play) at the blind flights' sizes; and drag along the airspeed as per-axis drag
+for some wind directions. Every other kind lies outside
 its candidates' family (``tests/test_truth_forms.py``)."""
 
 SINGLE: tuple[str, ...] = ("servo_limits", "logger_delay", "servo_dynamics", "dryden", "drag", "imu_misalignment",
