@@ -62,13 +62,14 @@ NOISE = "process_noise"
 
 
 SIMPLER: Mapping[str, str] = MappingProxyType({"actuator_lag": "input_delay"})
-"""A named effect and the simpler one named in its place when the two are tied: a servo on every stick axis (lag,
-shared second-order shape, rate limit and play: 13 parameters) and the input delay it can stand in for (4)."""
+"""The one tie settled by parsimony: a named effect and the simpler one named in its place when the two are tied, a
+servo on every stick axis (lag, shared second-order shape, rate limit and play: 13 parameters) and the input delay
+it can stand in for (4). Other ties keep the larger shrink first."""
 
 
 def simpler(effect: Entry, tied_with: Sequence[str], pool: Sequence[Entry]) -> Entry:
-    """``effect``, or the entry of ``pool`` (the ranking ``effect`` was named from) of its :data:`SIMPLER` stand-in
-    when that is among ``tied_with``: within the noise, the fewer parameters are named."""
+    """``effect``, or the first entry of ``pool`` (the ranking ``effect`` was named from, best first) of its
+    :data:`SIMPLER` stand-in when that is among ``tied_with``."""
     other = SIMPLER.get(effect.effect)
     if other is None or other not in tied_with:
         return effect
@@ -148,14 +149,13 @@ def find(
     effect = instead or best
     if instead is not None:
         effect = simpler(instead, instead.tied_with, beyond_noise)
-    elif best is not None and leads:
-        significant = {e.effect for e in ranking if e.significant}
-        effect = next((r for r in recheck if r.effect in significant), best)
-        best = next(e for e in ranking if e.effect == effect.effect)
-        effect = simpler(effect, best.tied_with, recheck if any(effect is r for r in recheck) else ranking)
-        best = next(e for e in ranking if e.effect == effect.effect)
     elif best is not None:
-        effect = best = simpler(best, best.tied_with, ranking)
+        if leads:
+            significant = {e.effect for e in ranking if e.significant}
+            effect = next((r for r in recheck if r.effect in significant), best)
+        tied = next(e for e in ranking if e.effect == effect.effect).tied_with
+        effect = simpler(effect, tied, (*recheck, *ranking) if leads else ranking)
+        best = next(e for e in ranking if e.effect == effect.effect)
     return Verdict(
         under_fitted=refit if refit is not None and refit.under_fitted else None,
         structure=structure if leads else None,
