@@ -17,6 +17,7 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+from jaxheli._progress import reporting, stage  # noqa: E402
 from jaxheli.benchmark import truth  # noqa: E402
 from jaxheli.benchmark.blind import scenario  # noqa: E402
 from jaxheli.benchmark.forms import form_gap  # noqa: E402
@@ -29,19 +30,22 @@ def main() -> None:
     p.add_argument("--duration", type=float, default=30.0)
     p.add_argument("--dt", type=float, default=0.05)
     a = p.parse_args()
-    for spec in a.trials:
-        kind, seed = spec.split(":")
-        where = scenario(int(seed), "wide")
-        trial = truth.truth_trial(kind, int(seed), where.theta, style=where.style, noise=where.noise,
-                                  strength=where.strength, duration=a.duration, dt=a.dt)
-        row: dict = {"resolvable": trial.resolvable}
-        for name in a.candidates:
-            gap = form_gap(where.theta, trial.injected.effects, (name,), style=where.style, seed=2 * int(seed),
-                           duration=a.duration, dt=a.dt, noise=where.noise)
-            row["size"] = round(gap.size, 3)
-            row[name] = {"residual": round(gap.residual, 3),
-                         "values": {k: round(v, 4) for k, v in gap.values.items() if abs(v) > 1e-3}}
-        print(f"{kind} {seed}: {json.dumps(row)}", flush=True)
+    with reporting():
+        for spec in a.trials:
+            kind, seed = spec.split(":")
+            where = scenario(int(seed), "wide")
+            trial = truth.truth_trial(kind, int(seed), where.theta, style=where.style, noise=where.noise,
+                                      strength=where.strength, duration=a.duration, dt=a.dt)
+            row: dict = {"resolvable": trial.resolvable}
+            for name in a.candidates:
+                with stage(f"{kind} {seed}: {name} fitted alone to the noise-free effect") as now:
+                    gap = form_gap(where.theta, trial.injected.effects, (name,), style=where.style,
+                                   seed=2 * int(seed), duration=a.duration, dt=a.dt, noise=where.noise)
+                    now.outcome = f"residual {gap.residual:.3f} sensor-noise std"
+                row["size"] = round(gap.size, 3)
+                row[name] = {"residual": round(gap.residual, 3),
+                             "values": {k: round(v, 4) for k, v in gap.values.items() if abs(v) > 1e-3}}
+            print(f"{kind} {seed}: {json.dumps(row)}", flush=True)
 
 
 if __name__ == "__main__":
