@@ -224,7 +224,7 @@ def test_trials_run_on_the_protocols_seeds_and_record_the_thresholds(tmp_path, m
     def fake(trials, *, on_trial=None, workers=1, **options):
         seen.extend(trials)
         return [{"kind": t.kind, "seed": t.seed, "top": "none", "correct": t.kind == "none", "detectable": True,
-                 "base": {"method": t.base}} for t in trials]
+                 "base": {"method": t.base}, "trial_base": t.base} for t in trials]
 
     monkeypatch.setattr(blind._run, "run_blind", fake)
     summary = blind.run_benchmark(["input_delay", "none"], 2, tmp_path, split="test", iwo_seeds=1, restart="segment",

@@ -7,7 +7,7 @@ import json
 import pytest
 
 from jaxheli.gap import ledger
-from jaxheli.benchmark.blind import _run
+from jaxheli.benchmark.blind import _resume, _run
 from jaxheli.cli import main
 from jaxheli.gap.thresholds import THRESHOLDS
 
@@ -30,7 +30,7 @@ def flown(monkeypatch):
     def fake(trials, *, on_trial=None, workers=1, **options):
         seen.extend(trials)
         return [{"kind": t.kind, "seed": t.seed, "top": "none", "correct": t.kind == "none", "detectable": True,
-                 "base": {"method": t.base}} for t in trials]
+                 "base": {"method": t.base}, "trial_base": t.base} for t in trials]
 
     monkeypatch.setattr(_run, "run_blind", fake)
     return seen
@@ -128,3 +128,68 @@ def test_the_committed_ledger_holds_the_runs_before_it():
         PROTOCOL.seeds("test", 20, spent=spent)
     with pytest.raises(ValueError, match="the first 10 unspent start at 30: skip 30 seeds"):
         PROTOCOL.seeds("design", 10, spent=spent)
+
+
+def _stop_early(out, keep):
+    """Cut the record ``OUT/blind.json`` back to its first ``keep`` trials, as a run stopped there leaves it."""
+    file = out / "blind.json"
+    data = json.loads(file.read_text())
+    data["records"] = data["records"][:keep]
+    data["summary"]["complete"] = False
+    file.write_text(json.dumps(data))
+    return file
+
+
+def test_a_stopped_run_resumes_flying_only_the_trials_it_lacks(tmp_ledger, tmp_path, flown, monkeypatch):
+    """Resumed (through the command line), a run flies the trials its record lacks, keeps the ones it holds, in
+    the order they fly, records the resumption and spends no seed again; a complete run is not resumed."""
+    monkeypatch.setattr(_resume, "_changed_since", lambda commit: [])
+    out = tmp_path / "out"
+    full = _run.run_benchmark(["input_delay", "none"], 2, out, split="design", skip_seeds=30, duration=12.0)
+    records = json.loads((out / "blind.json").read_text())["records"]
+    file = _stop_early(out, 3)
+    flown.clear()
+    assert main(["blind", "--resume", str(file), "--workers", "1"]) == 0
+    assert [(t.kind, t.seed) for t in flown] == [(r["kind"], r["seed"]) for r in records[3:]]
+    data = json.loads(file.read_text())
+    assert data["records"] == records and data["summary"]["complete"]
+    (resumed,) = data["summary"]["settings"]["resumed"]
+    assert resumed["records"] == 3 and resumed["workers"] == 1
+    assert data["summary"]["kinds"] == full["kinds"] and len(ledger.read(tmp_ledger)) == 1
+    with pytest.raises(ValueError, match="the run is complete .*nothing to resume"):
+        _resume.resume_benchmark(file)
+
+
+def test_a_run_is_resumed_only_with_its_seeds_rules_and_code(tmp_ledger, tmp_path, flown, monkeypatch):
+    out = tmp_path / "out"
+    _run.run_benchmark(["none"], 1, out, control_seeds=3, skip_seeds=30, truth="library")
+    file = _stop_early(out, 1)
+    monkeypatch.setattr(_resume, "_changed_since", lambda commit: ["jaxheli/gap/verdict.py"])
+    with pytest.raises(ValueError, match="differs from .*in jaxheli/gap/verdict.py; a run is resumed with the code"):
+        _resume.resume_benchmark(file)
+    monkeypatch.setattr(_resume, "_changed_since", lambda commit: [])
+    monkeypatch.setattr(ledger, "rule_id", lambda thresholds: "sha256:0000000000000000")
+    with pytest.raises(ValueError, match=r"started under the rules sha256:[0-9a-f]{16}, these are sha256:0{16}"):
+        _resume.resume_benchmark(file)
+    monkeypatch.undo()
+    monkeypatch.setenv(ledger.ENV, str(tmp_path / "other.jsonl"))
+    with pytest.raises(ValueError, match="seeds \\(30-32, .*\\) are not in the seed ledger"):
+        _resume.resume_benchmark(file)
+    assert not flown[3:]
+
+
+def test_records_written_before_the_trial_base_was_recorded_resume_when_the_run_has_one_base(tmp_ledger, tmp_path,
+                                                                                           flown, monkeypatch):
+    monkeypatch.setattr(_resume, "_changed_since", lambda commit: [])
+    for iwo_seeds, ok in ((0, True), (1, False)):
+        out = tmp_path / f"iwo{iwo_seeds}"
+        _run.run_benchmark(["none"], 1, out, control_seeds=2, skip_seeds=40 + 10 * iwo_seeds, iwo_seeds=iwo_seeds)
+        file = _stop_early(out, 1)
+        data = json.loads(file.read_text())
+        del data["records"][0]["trial_base"]
+        file.write_text(json.dumps(data))
+        if ok:
+            assert _resume.resume_benchmark(file)["complete"]
+        else:
+            with pytest.raises(ValueError, match="does not say its trial's base method, and the run has two"):
+                _resume.resume_benchmark(file)

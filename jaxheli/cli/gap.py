@@ -9,7 +9,8 @@ from pathlib import Path
 from ..effects import registry as fx
 from ..evaluate import resolve_params
 from ..flights import DEFAULT_DATA
-from ..benchmark.blind import BASES, BOXES, TRUTH_CLASSES, TRUTHS_SIM, markdown, run_benchmark, summarise_records
+from ..benchmark.blind import BASES, BOXES, TRUTH_CLASSES, TRUTHS_SIM, markdown, resume_benchmark, run_benchmark
+from ..benchmark.blind import summarise_records
 from ..gap.compare import localise_model, write_localisation
 from ..gap.consistency import MAX_TRAVEL_M, check, write_check
 from ..gap.diagnose import diagnose, write_diagnosis
@@ -115,6 +116,10 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
     p.add_argument("--summarise", metavar="BLIND_JSON", type=Path,
                    help="run nothing: summarise the records of an earlier run's blind.json again (today's table, "
                         "e.g. after a column was added) and write --out/blind.md")
+    p.add_argument("--resume", metavar="BLIND_JSON", type=Path,
+                   help="fly the trials a stopped run's blind.json does not hold, with its settings and seeds (already "
+                        "in the seed ledger), under the rules and code it started with (refused otherwise), and grow "
+                        "that record in place; only --workers is read beside it")
     p.add_argument("--split", choices=("design", "calibration", "test"), default="design",
                    help="seed range of the protocol in jaxheli/gap/thresholds.json: design (where rules are tried), "
                         "calibration (sets the thresholds), test (looked at once per rule change and simulator, never "
@@ -234,6 +239,11 @@ def _cmd_blind(args: argparse.Namespace) -> int:
         (Path(args.out) / "blind.md").write_text(table + "\n")
         print(table)
         print(f"wrote {Path(args.out) / 'blind.md'} (records of {args.summarise})")
+        return 0
+    if args.resume is not None:
+        summary = resume_benchmark(args.resume, workers=args.workers)
+        print(markdown(summary))
+        print(f"runtime {summary['runtime_s']:.0f} s; wrote {args.resume} and blind.md beside it")
         return 0
     kinds = args.kinds or list(TRUTHS_SIM[args.truth])
     summary = run_benchmark(kinds, args.seeds, args.out, workers=args.workers, iwo_seeds=args.iwo_seeds,

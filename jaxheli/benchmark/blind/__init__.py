@@ -19,8 +19,8 @@ Modules, one job each: :mod:`._scenario` (truth, pilot style, noise, strength pe
 :mod:`._injection` (the library simulator's withheld effect), :mod:`._flights` (either simulator's flights and the
 noise-free pairs that decide detectability), :mod:`._base` (the base model), :mod:`._trial` (one trial and its
 record), :mod:`._pool` (trials in processes pinned to cores), :mod:`._regrade` (a record graded again by the current
-rules), :mod:`._summary` and :mod:`._markdown` (statistics and tables) and :mod:`._run` (a run on the protocol's
-seeds, recorded in the seed ledger, :mod:`jaxheli.gap.ledger`).
+rules), :mod:`._summary` and :mod:`._markdown` (statistics and tables), :mod:`._run` (a run on the protocol's
+seeds, recorded in the seed ledger, :mod:`jaxheli.gap.ledger`) and :mod:`._resume` (a stopped run resumed).
 """
 
 from ._base import BASES as BASES, base_model as base_model
@@ -30,6 +30,7 @@ from ._injection import KINDS as KINDS, Injection as Injection, sample_injection
 from ._markdown import markdown as markdown
 from ._pool import run_blind as run_blind
 from ._regrade import regrade as regrade, regraded_top as regraded_top
+from ._resume import resume_benchmark as resume_benchmark
 from ._run import run_benchmark as run_benchmark
 from ._scenario import BOX as BOX, BOXES as BOXES, NOISES as NOISES, STRENGTHS as STRENGTHS, STYLES as STYLES
 from ._scenario import TRUTHS as TRUTHS, VALIDATE_EXCITATION as VALIDATE_EXCITATION, Scenario as Scenario

@@ -8,7 +8,7 @@ import dataclasses
 import json
 import shlex
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -40,12 +40,10 @@ def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: in
     bad = [k for k in kinds if k not in TRUTHS_SIM[truth]]
     if bad:
         raise ValueError(f"blind benchmark: unknown kinds {bad} for the {truth} truth; kinds are {TRUTHS_SIM[truth]}")
-    t0 = time.perf_counter()
     control_seeds = 2 * seeds if control_seeds is None else control_seeds
     drawn = {k: THRESHOLDS.protocol.seeds(split, control_seeds if k == "none" else seeds, skip_seeds,
                                           refly=refly_design) for k in kinds}
-    thresholds = {f.name: getattr(THRESHOLDS, f.name) for f in dataclasses.fields(THRESHOLDS)
-                  if f.name not in ("protocol", "source")}
+    thresholds = thresholds_in_force()
     rules = ledger.rule_id(thresholds)
     if split == "test":
         ledger.refuse_second_look(truth, rules)
@@ -63,23 +61,59 @@ def run_benchmark(kinds: Sequence[str], seeds: int, out: str | Path, workers: in
                               "training flight in the box blind.BOXES[box], never the truth",
                 "diagnosis": "joint re-identification (default of jaxheli diagnose)",
                 "ledger": {"file": str(ledger.path()), "entry": entry.to_json()}}
+    trials = trial_list(kinds, drawn, base, iwo_seeds)
+    Path(out).mkdir(parents=True, exist_ok=True)
+    ledger.append(entry)
+    return fly(trials, out, settings, [], workers=workers, truth=truth, **options)
+
+
+def thresholds_in_force() -> dict[str, Any]:
+    """The threshold values in force (:data:`~jaxheli.gap.thresholds.THRESHOLDS`), name to value, without the
+    protocol and the file's name: what :func:`~jaxheli.gap.ledger.rule_id` hashes with the rule code."""
+    return {f.name: getattr(THRESHOLDS, f.name) for f in dataclasses.fields(THRESHOLDS)
+            if f.name not in ("protocol", "source")}
+
+
+def trial_list(kinds: Sequence[str], drawn: Mapping[str, Sequence[int]], base: str, iwo_seeds: int) -> list[Trial]:
+    """A run's trials, in the order they fly: every kind's trial on each seed in turn (``drawn`` maps a kind to its
+    seeds), then the first ``iwo_seeds`` of each kind again with an IWO + polish base."""
     order = sorted({s for ss in drawn.values() for s in ss})
-    trials = ([Trial(k, s, base) for s in order for k in kinds if s in drawn[k]]
-              + [Trial(k, s, "iwo+polish") for k in kinds for s in drawn[k][:iwo_seeds]])
+    return ([Trial(k, s, base) for s in order for k in kinds if s in drawn[k]]
+            + [Trial(k, s, "iwo+polish") for k in kinds for s in list(drawn[k])[:iwo_seeds]])
+
+
+def fly(trials: Sequence[Trial], out: str | Path, settings: dict[str, Any], done: Sequence[dict[str, Any]],
+        *, workers: int = 1, prior_s: float = 0.0, **options: Any) -> dict[str, Any]:
+    """Fly the ``trials`` that the records ``done`` (an earlier part of the run, matched by :func:`trial_key`) do
+    not hold, in ``workers`` processes with the trial ``options``; after every trial write ``OUT/blind.json``
+    (every record in the order of ``trials``, their :func:`summarise_bases`, ``settings``, whether the run is
+    ``complete`` and its ``runtime_s``, ``prior_s`` of earlier parts included) and ``OUT/blind.md``. The summary."""
+    t0 = time.perf_counter()
+    held = {trial_key(r): r for r in done}
+    todo = [t for t in trials if trial_key(t) not in held]
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    ledger.append(entry)
 
     def save(records: list[dict[str, Any]]) -> dict[str, Any]:
-        summary = summarise_bases(records)
-        summary["runtime_s"] = time.perf_counter() - t0
+        found = {**held, **{trial_key(r): r for r in records}}
+        ordered = [found[trial_key(t)] for t in trials if trial_key(t) in found]
+        summary = summarise_bases(ordered)
+        summary["runtime_s"] = prior_s + time.perf_counter() - t0
         summary["settings"] = settings
-        summary["complete"] = len(records) == len(trials)
-        (out / "blind.json").write_text(json.dumps({"summary": summary, "records": records}, indent=2))
+        summary["complete"] = len(ordered) == len(trials)
+        (out / "blind.json").write_text(json.dumps({"summary": summary, "records": ordered}, indent=2))
         (out / "blind.md").write_text(markdown(summary) + f"\n\nRuntime {summary['runtime_s']:.0f} s.\n")
         return summary
 
-    return save(run_blind(trials, on_trial=save, workers=workers, truth=truth, **options))
+    return save(run_blind(todo, on_trial=save, workers=workers, **options) if todo else [])
+
+
+def trial_key(trial: Trial | Mapping[str, Any]) -> tuple[str, int, str]:
+    """A trial's identity in a run, ``(kind, seed, base method)``, of a :class:`Trial` or of its record (whose
+    ``trial_base`` :func:`~jaxheli.benchmark.blind.run_blind` writes)."""
+    if isinstance(trial, Trial):
+        return trial.kind, trial.seed, trial.base
+    return str(trial["kind"]), int(trial["seed"]), str(trial["trial_base"])
 
 
 def _command(kinds: Sequence[str], seeds: int, **options: Any) -> str:
