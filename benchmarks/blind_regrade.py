@@ -2,13 +2,15 @@
 
     python benchmarks/blind_regrade.py OUT/blind.json [OUT2/blind.json ...]
 
-Each trial of each ``blind.json`` (``jaxheli blind --out OUT``) is graded by
+Each trial of each ``blind.json`` (``jaxheli blind --out OUT``; gzipped too, as the test looks' records in
+``benchmarks/looks/`` are kept) is graded by
 :func:`jaxheli.benchmark.blind.regrade` on the fits the record kept (ranking, base re-fit, structure, re-checks).
 Printed: every trial whose named effect changes, then per kind the top-1 of the resolvable trials as recorded and as
 graded now. The fits are those of the code that flew the seeds; only the rules that read them are today's.
 """
 
 import argparse
+import gzip
 import json
 from collections import defaultdict
 
@@ -21,11 +23,11 @@ from jaxheli.benchmark.blind import regraded_top  # noqa: E402
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("records", nargs="+", help="blind.json files written by `jaxheli blind --out`")
+    parser.add_argument("records", nargs="+", help="blind.json files written by `jaxheli blind --out` (or gzipped)")
     args = parser.parse_args()
     tally: dict[str, list[int]] = defaultdict(lambda: [0, 0, 0])
     for path in args.records:
-        with open(path) as f:
+        with (gzip.open if path.endswith(".gz") else open)(path, "rt") as f:
             records = json.load(f)["records"]
         for r in records:
             now, right = regraded_top(r), r.get("right", [r["kind"]])  # the library simulator's kinds name themselves
