@@ -158,6 +158,8 @@ def test_a_stopped_run_resumes_flying_only_the_trials_it_lacks(tmp_ledger, tmp_p
     assert data["summary"]["kinds"] == full["kinds"] and len(ledger.read(tmp_ledger)) == 1
     with pytest.raises(ValueError, match="the run is complete .*nothing to resume"):
         _resume.resume_benchmark(file)
+    with pytest.raises(SystemExit, match="--seeds, --out not read: a resumed run keeps the settings its record holds"):
+        main(["blind", "--resume", str(file), "--seeds", "3", "--out", str(tmp_path)])
 
 
 def test_a_run_is_resumed_only_with_its_seeds_rules_and_code(tmp_ledger, tmp_path, flown, monkeypatch):

@@ -164,8 +164,13 @@ def add_blind_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                    help="trials run in parallel processes, each on a core of its own (default 1)")
     p.add_argument("--out", default="jaxheli-blind", help="output folder (blind.json, blind.md)")
     add_quiet_option(p)
-    p.set_defaults(func=_cmd_blind)
+    run_options = {a.dest: a.default for a in p._actions if a.option_strings and a.dest not in _BESIDE_RESUME}
+    p.set_defaults(func=_cmd_blind, run_options=run_options)
     return p
+
+
+_BESIDE_RESUME = ("help", "resume", "workers", "quiet")
+"""Options ``jaxheli blind --resume`` reads: every other one comes from the resumed run's record."""
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
@@ -241,6 +246,10 @@ def _cmd_blind(args: argparse.Namespace) -> int:
         print(f"wrote {Path(args.out) / 'blind.md'} (records of {args.summarise})")
         return 0
     if args.resume is not None:
+        given = ["--" + d.replace("_", "-") for d, v in args.run_options.items() if getattr(args, d) != v]
+        if given:
+            raise SystemExit(f"jaxheli blind --resume: {', '.join(given)} not read: a resumed run keeps the settings "
+                             f"its record holds ({args.resume}); beside --resume give only --workers")
         summary = resume_benchmark(args.resume, workers=args.workers)
         print(markdown(summary))
         print(f"runtime {summary['runtime_s']:.0f} s; wrote {args.resume} and blind.md beside it")
