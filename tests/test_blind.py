@@ -194,11 +194,11 @@ def test_other_base_methods_are_summarised_beside_pem_on_the_same_trials():
 
 
 def test_the_independent_trials_are_pooled_by_form_in_family_and_other():
-    def trial(kind, correct, resolvable=True, truth_sim="independent"):
+    def trial(kind, correct, resolvable=True, truth_sim="independent", oracle=10.0):
         return {"kind": kind, "correct": correct, "truth_sim": truth_sim, "detectable": True,
-                "resolvable": resolvable}
+                "resolvable": resolvable, "oracle_shrink_pct": oracle}
 
-    rows = [trial("drag", True), trial("servo_limits", False), trial("logger_delay", True),
+    rows = [trial("drag", True), trial("servo_limits", False), trial("logger_delay", True, oracle=0.5),
             trial("bias_drift", False, resolvable=False), trial("two_at_once", True), trial("quantisation", False),
             trial("input_delay", False, truth_sim="library"), trial("none", True)]
     pooled = forms(rows)
@@ -206,6 +206,11 @@ def test_the_independent_trials_are_pooled_by_form_in_family_and_other():
     other = pooled["other forms"]
     assert other["trials"] == 3 and other["top1_pct"] == pytest.approx(200 / 3)
     assert other["resolvable_trials"] == 2 and other["top1_resolvable_pct"] == 100.0
+    # the oracle explains the two-at-once trial only (the logger delay's shrinks 0.5 %, under MIN_SHRINK)
+    assert other["resolvable_explainable_trials"] == 1 and other["top1_resolvable_explainable_pct"] == 100.0
+    assert pooled["in-family"]["resolvable_explainable_trials"] == 2
+    assert f"shrinks the gap by {MIN_SHRINK:g} % or more on 1 of them, top-1 100 % there" in markdown(
+        {"kinds": {}, "forms": pooled, "false_positive_pct": None})
     assert "beyond_structure_trials" not in other
     reached = forms([{**r, "structure_reach": 0.5 if r["kind"] == "logger_delay" else 2.0} for r in rows])
     other = reached["other forms"]

@@ -47,6 +47,10 @@ def markdown(summary: dict[str, Any]) -> str:
         lines.append(f"\nPooled over the {label} kinds (independent simulator): top-1 {cell(pool['top1_pct'], '.0f')} % "
                      f"of {pool['trials']} trials, {cell(pool.get('top1_resolvable_pct'), '.0f')} % of the "
                      f"{pool.get('resolvable_trials', 0)} resolvable"
+                     + ("" if "resolvable_explainable_trials" not in pool else
+                        f" (the oracle, the true effect fitted with the same base, shrinks the gap by {MIN_SHRINK:g} % "
+                        f"or more on {pool['resolvable_explainable_trials']} of them, top-1 "
+                        f"{cell(pool.get('top1_resolvable_explainable_pct'), '.0f')} % there)")
                      + ("" if "beyond_structure_trials" not in pool else
                         f", {cell(pool.get('top1_beyond_structure_pct'), '.0f')} % of the "
                         f"{pool['beyond_structure_trials']} beyond the structure's reach"))

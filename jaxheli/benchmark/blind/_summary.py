@@ -134,16 +134,21 @@ def forms(records: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """Top-1 pooled over the independent simulator's effect trials by form: ``in-family`` (the kinds of
     :data:`~jaxheli.benchmark.truth.IN_FAMILY`, whose nearest candidate comes within the noise) and ``other forms``
     (every other kind that a candidate counts as naming, ``two_at_once`` included), over all trials, over the
-    resolvable ones (:func:`resolvable`) and, where the records have it, over those resolvable beyond the structure
-    (:func:`beyond_structure`)."""
+    resolvable ones (:func:`resolvable`), over the resolvable ones whose oracle explains the effect, beyond the structure
+    where the effects were ranked again there (:func:`explainable_beyond_structure`: what any rule on the
+    catalogue's forms could credit, a diagnostic of where misses come from) and, where the records have it, over those
+    resolvable beyond the structure (:func:`beyond_structure`)."""
     pools = {"in-family": lambda k: k in IN_FAMILY,
              "other forms": lambda k: k not in IN_FAMILY and k in KIND_CANDIDATES and KIND_CANDIDATES[k] != ("none",)}
     out = {}
     for label, member in pools.items():
         rows = [r for r in records if r.get("truth_sim") == "independent" and member(r["kind"])]
         if rows:
+            seen = [r for r in rows if resolvable(r)]
+            past = [r for r in seen if explainable_beyond_structure(r)]
             out[label] = {"trials": len(rows), "top1_pct": _pct([r["correct"] for r in rows]),
-                          **_subset([r for r in rows if resolvable(r)], "resolvable")}
+                          **_subset(seen, "resolvable"), "resolvable_explainable_trials": len(past),
+                          "top1_resolvable_explainable_pct": _pct([r["correct"] for r in past])}
             if any("structure_reach" in r for r in rows):
                 out[label].update(_subset([r for r in rows if beyond_structure(r)], "beyond_structure"))
     return out
