@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import shlex
 import time
 from collections.abc import Mapping, Sequence
@@ -101,7 +102,9 @@ def fly(trials: Sequence[Trial], out: str | Path, settings: dict[str, Any], done
         summary["runtime_s"] = prior_s + time.perf_counter() - t0
         summary["settings"] = settings
         summary["complete"] = len(ordered) == len(trials)
-        (out / "blind.json").write_text(json.dumps({"summary": summary, "records": ordered}, indent=2))
+        partial = out / "blind.json.tmp"  # moved into place whole: a run killed while writing keeps its last record
+        partial.write_text(json.dumps({"summary": summary, "records": ordered}, indent=2))
+        os.replace(partial, out / "blind.json")
         (out / "blind.md").write_text(markdown(summary) + f"\n\nRuntime {summary['runtime_s']:.0f} s.\n")
         return summary
 
