@@ -8,7 +8,9 @@ top-1 and in-tie-set % and median magnitude error over all, detectable and ident
 fit's and the oracle's magnitude error, median shrink vs the oracle; false-positive %), both after every trial.
 Usage::
 
-    python benchmarks/blind_diagnosis.py [--seeds 20] [--iwo-seeds 3] [--kinds input_delay none ...] [--pem-steps 100] [--workers 2] [--out results/blind]
+    python benchmarks/blind_diagnosis.py --refly-design [--seeds 20] [--iwo-seeds 3] [--kinds input_delay none ...] [--pem-steps 100] [--workers 2] [--out results/blind]
+
+(every design seed is spent, so design runs fly them again with ``--refly-design``; the options are ``jaxheli blind``'s).
 """
 
 from __future__ import annotations
