@@ -65,9 +65,9 @@ def pytest_configure(config: pytest.Config) -> None:
 
 LONGEST_FIRST = ("test_diagnose.py", "test_notebook.py", "test_blind.py", "test_identify.py", "test_benchmark.py",
                  "test_px4log_cli.py")
-"""The files that take longest (seconds per file from ``--durations``: 420, 160, 140, 90, 70, 70 of a 1,830-s run),
-collected first. ``--dist loadfile`` hands whole files out in collection order (a first batch to each worker, then
-one at a time to whichever is free), so a long file collected late ends the run with the other worker idle."""
+"""The files that take longest (by ``--durations``; measured in ``docs/performance_history.md``), collected first.
+``--dist loadfile`` hands whole files out in collection order (a first batch to each worker, then one at a time to
+whichever is free), so a long file collected late ends the run with the other worker idle."""
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

@@ -134,10 +134,10 @@ def forms(records: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """Top-1 pooled over the independent simulator's effect trials by form: ``in-family`` (the kinds of
     :data:`~jaxheli.benchmark.truth.IN_FAMILY`, whose nearest candidate comes within the noise) and ``other forms``
     (every other kind that a candidate counts as naming, ``two_at_once`` included), over all trials, over the
-    resolvable ones (:func:`resolvable`), over the resolvable ones whose oracle explains the effect, beyond the structure
-    where the effects were ranked again there (:func:`explainable_beyond_structure`: what any rule on the
-    catalogue's forms could credit, a diagnostic of where misses come from) and, where the records have it, over those
-    resolvable beyond the structure (:func:`beyond_structure`)."""
+    resolvable ones (:func:`resolvable`), over the resolvable ones whose oracle explains the effect, beyond the
+    structure where the effects were ranked again there (:func:`explainable_beyond_structure`: what any rule on the
+    catalogue's forms could credit, a diagnostic of where misses come from) and, where the records have it, over
+    those resolvable beyond the structure (:func:`beyond_structure`)."""
     pools = {"in-family": lambda k: k in IN_FAMILY,
              "other forms": lambda k: k not in IN_FAMILY and k in KIND_CANDIDATES and KIND_CANDIDATES[k] != ("none",)}
     out = {}
