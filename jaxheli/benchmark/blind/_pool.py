@@ -29,9 +29,9 @@ def run_blind(
     """Diagnose each trial (a :class:`Trial` or ``(kind, seed)``) blind (:func:`run_trial` with ``options``);
     one record per trial, in the order of ``trials``, with the trial's base method (``trial_base``). ``workers > 1``
     runs trials in that many processes (each a trial at a time, in float64, each started on a core of its own when
-    the machine has that many, :func:`_worker_cores`). A progress line reports each trial, with the time left (:func:`jaxheli.reporting`; in
-    one process its stages too), and ``on_trial(records_so_far)`` runs after each, e.g. to save (records finished
-    so far, in the order of ``trials``)."""
+    the machine has that many, :func:`_worker_cores`). A progress line reports each trial, with the time left
+    (:func:`jaxheli.reporting`; in one process its stages too), and ``on_trial(records_so_far)`` runs after each,
+    e.g. to save (records finished so far, in the order of ``trials``)."""
     done: dict[int, dict[str, Any]] = {}
 
     def finished(i: int, record: dict[str, Any]) -> None:
