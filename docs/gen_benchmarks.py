@@ -75,10 +75,10 @@ def record(name: str, kind: str, command: str, json_path: Path, *, title: str, m
            seeds: str, note: str = "", ran_s: float | None = None, keep: str | None = None) -> dict:
     """Run ``command`` (a shell command line, from the repository root), read the JSON it writes at ``json_path``
     and store it with its metadata as ``docs/benchmarks/NAME.json``; the record keeps the command as written
-    (``$JAXHELI_DATA`` unexpanded). ``ran_s``: the command already ran on this commit, taking that long by the
-    caller's clock; its output is stored without running it again (the record says so). ``keep``: store only that
-    top-level entry of the JSON (e.g. ``summary`` of a blind check's ``blind.json``, whose per-trial records run to
-    megabytes)."""
+    (``$JAXHELI_DATA`` unexpanded). ``ran_s``: the command already ran, taking that long by the caller's clock; its
+    output is stored without running it again (the record says so, and ``note`` says with which code where that is
+    not this commit's). ``keep``: store only that top-level entry of the JSON (e.g. ``summary`` of a blind check's
+    ``blind.json``, whose per-trial records run to megabytes)."""
     load_before = machine()["load_1min"]
     if ran_s is None:
         start = time.perf_counter()
@@ -86,7 +86,7 @@ def record(name: str, kind: str, command: str, json_path: Path, *, title: str, m
         wall = time.perf_counter() - start
     else:
         wall, load_before = ran_s, None
-        note = (note + " " if note else "") + "Run before the record was written, with the code of this commit (only docs differed); its output stored."
+        note = (note + " " if note else "") + "Run before the record was written; its output stored."
     status = _git("status", "--porcelain", "--untracked-files=no", "--", "jaxheli", "pyproject.toml")
     rec = {
         "title": title,
