@@ -46,7 +46,7 @@ E = EFFECTS.size(OUT)
 
 
 def test_layout_is_the_historical_one():
-    sizes = {"delay": 4, "lag": 4, "play": 4, "slew": 4, "servo_shape": 1, "sat": 4, "drag": 4, "rotor": 2, "gust": 3, "mis": 6, "bias": K, "drift": K,
+    sizes = {"delay": 4, "lag": 4, "sat": 4, "drag": 4, "rotor": 2, "gust": 3, "mis": 6, "bias": K, "drift": K,
              "walk": K, "revert": 1}
     stops = np.cumsum(list(sizes.values()))
     assert layout(OUT) == {g: slice(int(stop - n), int(stop)) for (g, n), stop in zip(sizes.items(), stops)}
@@ -55,7 +55,7 @@ def test_layout_is_the_historical_one():
     np.testing.assert_array_equal(no_effect(OUT), expected)
     assert registry.ALL == ("input_delay", "actuator_lag", "output_bias_drift", "process_noise", "quadratic_drag",
                             "control_saturation", "rotor_speed_coupling", "sensor_misalignment")
-    assert [t.apply.__name__ for t in EFFECTS.terms(("command", "servo"))] == ["_delay", "_saturate", "_servo"]
+    assert [t.apply.__name__ for t in EFFECTS.terms(("command", "servo"))] == ["_delay", "_saturate", "_lag"]
 
 
 def test_the_bias_walks_on_rates_and_attitudes_only():

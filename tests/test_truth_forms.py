@@ -13,7 +13,8 @@ from jaxheli.model import TABLE2
 DURATION, STRENGTH, STYLE = 15.0, 2.0, "validate"
 """Flights of 15 s with the held-out 3-2-1-1, effects at twice their size: every draw below is clearly detectable."""
 
-OTHER_FORMS: dict[str, int] = {"logger_delay": 0, "dryden": 0, "imu_misalignment": 0, "bias_drift": 0, "rotor_droop": 1}
+OTHER_FORMS: dict[str, int] = {"logger_delay": 0, "servo_dynamics": 1, "dryden": 0, "imu_misalignment": 0,
+                               "bias_drift": 0, "rotor_droop": 1}
 """The kinds outside every family, each with a draw (seed) whose effect is several noise std in size."""
 
 

@@ -70,91 +70,18 @@ INPUT_DELAY = _per_axis("input_delay", "delay", eta_order=0, unit="s", start=0.0
 further start at 150 ms). Injected: 40-120 ms on one random axis."""
 
 
-_PLAY_BOUND = 0.1
-"""Widest plausible linkage play (stick): a tenth of full stick, several times a worn servo's gear and ball-link
-slop."""
-
-_PLAY_START = 0.002
-"""Start of each axis's play (stick), away from the kink at ``|play| = 0``."""
-
-_PLAY_TRY = 0.02
-"""Further start of each axis's play (stick), alone: from the small start the lag takes up a wide play's delay first
-and the fit stops there."""
-
-_SLEW_BOUND = 2.0
-"""Slowest plausible servo (s per stick of travel, the inverse of its rate limit): half a stick per second."""
-
-_SLEW_START = 0.01
-"""Start of each axis's slew (s/stick): a rate limit of 100 stick/s, away from the kink at ``|slew| = 0``."""
-
-_SLEW_TRY = 0.5
-"""Further start of each axis's slew (s/stick), alone: a servo limited to 2 stick/s."""
-
-_SUBSTEPS = 4
-"""Backward-Euler steps of the servo per sample: a servo of natural frequency up to ``1 / dt`` keeps its overshoot
-(one step per sample damps it)."""
-
-_SHAPE_BOUND = 4.0
-"""Largest second-order shape ``1 / (4 zeta^2)``: a servo no less damped than ``zeta = 0.25``."""
-
-
-def _servo_params(outputs: tuple[str, ...], at: Callable[[str, int], int]) -> tuple[Param, ...]:
-    lag = tuple(Param(at("lag", i), f"lag_{a}", "s", a, 0.01, True, 0.5, tries=(0.2,))
-                for i, a in enumerate(INPUT_NAMES))
-    play = tuple(Param(at("play", i), f"play_{a}", "stick", a, _PLAY_START, True, _PLAY_BOUND, tries=(_PLAY_TRY,))
-                 for i, a in enumerate(INPUT_NAMES))
-    slew = tuple(Param(at("slew", i), f"slew_{a}", "s/stick", a, _SLEW_START, True, _SLEW_BOUND, tries=(_SLEW_TRY,))
-                 for i, a in enumerate(INPUT_NAMES))
-    shape = Param(at("servo_shape", 0), "servo_shape", "-", ",".join(INPUT_NAMES), 0.02, True, _SHAPE_BOUND, shape=True,
-                  tries=(1.0,))
-    return lag + play + slew + (shape,)
-
-
-def _servo_state(plant: PlantView) -> tuple[Float[Array, "4"], Float[Array, "4"], Float[Array, "4"]]:
-    return jnp.zeros(N_INPUTS), jnp.zeros(N_INPUTS), jnp.zeros(N_INPUTS)
-
-
-def _servo(plant: PlantView, state: tuple[Float[Array, "4"], Float[Array, "4"], Float[Array, "4"]],
-           sticks: Float[Array, "4"], servo: Float[Array, "4"]
-           ) -> tuple[tuple[Float[Array, "4"], Float[Array, "4"], Float[Array, "4"]], Float[Array, "4"]]:
-    """Servo position ``x`` of ``m x'' + tau x' + x = stick`` (``tau = |lag|`` s, ``m = |servo_shape| tau^2``: a
-    first-order lag at shape 0, a second-order servo of damping ``zeta = 1 / (2 sqrt(shape))`` and natural frequency
-    ``2 zeta / tau`` above) whose rate is limited smoothly to ``1 / |slew|`` stick/s (``v / sqrt(1 + (slew v)^2)``),
-    :data:`_SUBSTEPS` backward-Euler steps per sample, then a linkage with play ``|play|`` stick that follows the
-    servo only once the play is taken up. ``state``: position, rate (stick/s) and linkage output."""
-    x, v, link = state
+def _lag(plant: PlantView, state: None, sticks: Float[Array, "4"], servo: Float[Array, "4"]
+         ) -> tuple[None, Float[Array, "4"]]:
+    """Servo lag of time constant ``|lag|`` s, backward Euler from the servo position ``servo``."""
     tau = jnp.abs(plant.group("lag"))
-    m = jnp.abs(plant.group("servo_shape")) * tau**2
-    slew = jnp.abs(plant.group("slew"))
-    h = plant.dt / _SUBSTEPS
-    for _ in range(_SUBSTEPS):
-        v = (sticks - x + m / h * v) / (m / h + tau + h)
-        v = v / jnp.sqrt(1.0 + (slew * v) ** 2)
-        x = x + h * v
-    half = 0.5 * jnp.abs(plant.group("play"))
-    link = jnp.clip(link, x - half, x + half)
-    return (x, v, link), link
+    a = tau / (tau + plant.dt)
+    return state, a * servo + (1.0 - a) * sticks
 
 
-def _inject_lag(dice: Dice) -> Draw:
-    param = f"lag_{INPUT_NAMES[dice.axis]}"
-    return Draw({param: dice.rng.uniform(0.05, 0.15)}, param)
-
-
-ACTUATOR_LAG = Effect(
-    name="actuator_lag",
-    groups=(Group("lag", N_INPUTS), Group("play", N_INPUTS), Group("slew", N_INPUTS), Group("servo_shape", 1)),
-    eta_order=1,
-    params=_servo_params,
-    terms=(Term("servo", _servo, init=_servo_state),),
-    inject=_inject_lag,
-)
-"""The servos' dynamics per stick axis: a lag of time constant ``lag`` (s; rotor lags ~0.1 s, plausible up to 0.5
-s; a further start at 200 ms), first order or, with the shared shape ``servo_shape`` (``1 / (4 zeta^2)``, up to 4;
-a further start at 1, ``zeta = 0.5``), second order of the same first moment, its rate limited to ``1 / slew``
-(``slew`` in s/stick, plausible up to 2: half a stick per second; a further start at 0.5), and the play ``play`` of
-the linkage behind each servo (stick, plausible up to 0.1; a further start at 0.02). Injected: a first-order lag of
-50-150 ms on one random axis."""
+ACTUATOR_LAG = _per_axis("actuator_lag", "lag", eta_order=1, unit="s", start=0.01, bound=0.5,
+                         term=Term("servo", _lag), value=lambda rng: rng.uniform(0.05, 0.15), tries=(0.2,))
+"""First-order servo lag per stick axis (s; rotor lags ~0.1 s, plausible up to 0.5 s; a further start at
+200 ms). Injected: 50-150 ms on one random axis."""
 
 
 _BIAS_BOUND = {"m/s": 3.0, "rad/s": 0.5, "rad": 0.35}

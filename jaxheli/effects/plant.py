@@ -8,7 +8,7 @@ diagnosis (:mod:`jaxheli.gap.predictor`), so an injected effect and its fitted m
 The plant composes the terms of its registry's effects (:class:`~jaxheli.effects.record.Term`), per sample
 ``k`` (sample time ``dt``)::
 
-    stick u_k -> command terms (transport delay, saturation) -> servo terms (servo dynamics, linkage play) = applied u
+    stick u_k -> command terms (transport delay, saturation) -> servo terms (servo lag) = applied u
               -> x_k+1 = Ad x_k + B u + E wind + dt (sum of the airframe terms: drag, rotor-speed yaw)
     output  y = reading terms (bias, drift) of mounting terms (misalignment, scale) of C x
 """
@@ -77,7 +77,7 @@ class Plant(eqx.Module):
     def actuate(
         self, history: tuple[Any, ...], servo: Float[Array, "4"], stick: Float[Array, "4"]
     ) -> tuple[tuple[Any, ...], Float[Array, "4"]]:
-        """Sticks through the stick-path terms (delay, saturation, servo dynamics); returns their new states and
+        """Sticks through the stick-path terms (delay, saturation, servo lag); returns their new states and
         the new servo (= applied) state."""
         states = []
         for term, state in zip(self.registry.terms(STICK), history):

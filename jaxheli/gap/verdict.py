@@ -62,9 +62,9 @@ NOISE = "process_noise"
 
 
 SIMPLER: Mapping[str, str] = MappingProxyType({"actuator_lag": "input_delay"})
-"""The one tie settled by parsimony: a named effect and the simpler one named in its place when the two are tied, a
-servo on every stick axis (lag, shared second-order shape, rate limit and play: 13 parameters) and the input delay
-it can stand in for (4). Other ties keep the larger shrink first."""
+"""The one tie settled by a fixed preference rather than by shrink: a named effect and the one named in its place
+when the two are tied, a servo lag on every stick axis and the input delay, which a lag of a similar size on every
+axis stands in for. Other ties keep the larger shrink first."""
 
 
 def simpler(effect: Entry, tied_with: Sequence[str], pool: Sequence[Entry]) -> Entry:

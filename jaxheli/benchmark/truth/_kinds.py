@@ -42,12 +42,10 @@ a bias with drift and walk; governor droop the rotor-speed coupling; quantisatio
 (no candidate has their form). ``two_at_once``: either part's candidates. No kind is drawn in a candidate's own
 form, though the nearest candidate comes within the noise of those in :data:`IN_FAMILY`."""
 
-IN_FAMILY: tuple[str, ...] = ("servo_limits", "servo_dynamics", "drag")
+IN_FAMILY: tuple[str, ...] = ("servo_limits", "drag")
 """Kinds whose nearest candidate reproduces the drawn effect within the sensor noise on some draws
-(``benchmarks/truth_forms.py``, ``benchmarks/trial_forms.py``): travel stops and a rate limit as the smooth
-saturation, at the sizes a 30-s flight reaches; a second-order, rate-limited servo with backlash as the servo
-candidate (lag, shape, rate limit, play) at the blind flights' sizes; and drag along the airspeed as per-axis drag
-for some wind directions. Every other kind lies outside
+(``benchmarks/truth_forms.py``): travel stops and a rate limit as the smooth saturation, at the sizes a 30-s
+flight reaches, and drag along the airspeed as per-axis drag for some wind directions. Every other kind lies outside
 its candidates' family (``tests/test_truth_forms.py``)."""
 
 SINGLE: tuple[str, ...] = ("servo_limits", "logger_delay", "servo_dynamics", "dryden", "drag", "imu_misalignment",
@@ -117,16 +115,15 @@ def _servo_dynamics(d: Dice) -> tuple[Effects, dict]:
     """A second-order servo on one axis, ``wn`` 12-25 rad/s over strength (at least 6), ``zeta`` 0.5-0.9, its rate
     limited to 2-5 stick/s over strength (at least 1) and a backlash of 0.005-0.015 stick times strength (at most
     0.04); shared: the low-frequency equivalent lag and delay ``2 zeta / wn`` (first moment of the impulse
-    response), and the servo candidate's shape ``1 / (4 zeta^2)``, slew ``1 / rate`` and play."""
+    response)."""
     axis = int(d.rng.integers(len(AXES)))
     wn, zeta = max(6.0, d.rng.uniform(12.0, 25.0) / d.strength), d.rng.uniform(0.5, 0.9)
     rate = max(1.0, d.rng.uniform(2.0, 5.0) / d.strength)
     backlash = min(0.04, d.rng.uniform(0.005, 0.015) * d.strength)
     servo = Servo(wn=_on_axis(axis, wn, np.inf), zeta=_on_axis(axis, zeta, 0.7), rate=_on_axis(axis, rate, np.inf),
                   backlash=_on_axis(axis, backlash, 0.0))
-    tau, a = 2.0 * zeta / wn, AXES[axis]
-    return Effects(servo=servo), {"actuator_lag": {f"lag_{a}": tau, "servo_shape": 0.25 / zeta**2,
-                                                   f"slew_{a}": 1.0 / rate, f"play_{a}": backlash},
+    tau = 2.0 * zeta / wn
+    return Effects(servo=servo), {"actuator_lag": {f"lag_{AXES[axis]}": tau},
                                   "input_delay": {f"delay_{AXES[axis]}": tau}}
 
 

@@ -2,9 +2,8 @@
 hard travel stops, a rate limit, second-order dynamics and backlash in its linkage, per axis.
 
 The catalogue's forms are a fractional, interpolated delay, a smooth ``u / sqrt(1 + k u^2)`` saturation and a
-servo integrated by backward Euler with a smooth rate limit and a play that clips its output; these are the
-hardware's own: frames that arrive late or not at all, hard stops and rate limits, an exactly discretised
-second-order servo at a finer step, a linkage that holds inside its play.
+first-order lag; these are the hardware's own: frames that arrive late or not at all, hard stops and rate limits, an
+exactly discretised second-order servo at a finer step, a linkage that holds inside its play.
 """
 
 from __future__ import annotations
